@@ -1,0 +1,60 @@
+# radar2shape: every target that needs the environment depends on `install`, which is a no-op
+# when .venv is up to date with pyproject.toml. `make help` lists the targets.
+SHELL := /bin/bash
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+export WANDB_SILENT := true
+
+CONFIG ?= conf/experiment/toy_sphere.yaml
+GRID ?= table1
+DATA_CONFIG ?= conf/data/parts.yaml
+DATA_DIR ?= data/parts
+WORKERS ?= 2
+
+.DEFAULT_GOAL := help
+.PHONY: help install test test-full demo data fit test-model sweep report bench clean
+
+help: ## List the targets
+	@grep -E '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*## "}; {printf "  %-12s %s\n", $$1, $$2}'
+
+$(STAMP): pyproject.toml
+	@test -x "$(PY)" || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet torch==2.13.0
+	$(PY) -m pip install --quiet -e ".[dev]"
+	@touch $(STAMP)
+
+install: $(STAMP) ## Create .venv with torch (CPU) and the project in editable mode
+
+test: install ## Run the default test suite (not slow)
+	WANDB_MODE=disabled $(PY) -m pytest -m "not slow" -q
+
+test-full: install ## Run every test, slow ones included
+	WANDB_MODE=disabled $(PY) -m pytest -q
+
+demo: install ## Build a tiny dataset, train and test the default models on CPU, write reports/demo/
+	$(PY) scripts/demo.py --out reports/demo
+
+data: install ## Build the default dataset (DATA_CONFIG=, DATA_DIR=, WORKERS=)
+	$(VENV)/bin/radar2shape build-data --config $(DATA_CONFIG) --out $(DATA_DIR) --workers $(WORKERS)
+
+fit: install ## Train with the Lightning CLI: make fit CONFIG=conf/experiment/NAME.yaml
+	$(VENV)/bin/radar2shape fit --config $(CONFIG)
+
+test-model: install ## Test a model: make test-model CONFIG=... CKPT=path/to.ckpt
+	$(VENV)/bin/radar2shape test --config $(CONFIG) $(if $(CKPT),--ckpt_path $(CKPT))
+
+sweep: install ## Run a config grid: make sweep GRID=table1 (conf/grid/GRID.yaml)
+	@test -f conf/grid/$(GRID).yaml || { echo "error: conf/grid/$(GRID).yaml not found (grids land with issues #8 and #9; see README Roadmap)"; exit 2; }
+	$(PY) -m radar2shape.sweep conf/grid/$(GRID).yaml
+
+report: install ## Collect finished runs into tables and figures: make report GRID=table1
+	$(VENV)/bin/radar2shape report --grid $(GRID)
+
+bench: install ## Run the speed benchmarks under bench/
+	@for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+
+clean: ## Remove the environment, runs, built data and reports
+	rm -rf $(VENV) runs data reports/demo wandb lightning_logs .pytest_cache
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -1,0 +1,1 @@
+"""Baseline models (Diffusion-SDF, TMNet, LIST, InvRT) implementing radar2shape's ReconstructionModel."""

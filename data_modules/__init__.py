@@ -1,0 +1,1 @@
+"""LightningDataModules, Datasets and dataset builders that read/write radar2shape records."""

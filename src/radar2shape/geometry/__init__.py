@@ -1,0 +1,1 @@
+"""Geometry: mesh loading and repair, normalisation, sampling, families, marching cubes."""
