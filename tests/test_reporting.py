@@ -1,0 +1,37 @@
+"""Report tables: values, ± formatting, best-in-bold by direction, and CSV round trip."""
+
+import csv
+
+from radar2shape.reporting import Column, markdown_table, read_logged_metrics, write_csv
+
+COLUMNS = [Column("chamfer", "CD", higher_is_better=False), Column("iou", "IoU", higher_is_better=True)]
+ROWS = [
+    ("ours", {"chamfer_mean": 1.5, "chamfer_std": 0.25, "iou_mean": 0.8, "iou_std": 0.1}),
+    ("mean-shape", {"chamfer_mean": 4.0, "chamfer_std": 1.0, "iou_mean": 0.85, "iou_std": 0.05}),
+]
+
+
+def test_markdown_table_bolds_best_per_direction():
+    table = markdown_table(ROWS, COLUMNS).splitlines()
+    assert table[0] == "| model | CD | IoU |"
+    assert table[2] == "| ours | **1.500 ± 0.250** | 0.800 ± 0.100 |"
+    assert table[3] == "| mean-shape | 4.000 ± 1.000 | **0.850 ± 0.050** |"
+
+
+def test_missing_metric_shows_na():
+    table = markdown_table([("x", {"iou_mean": 0.5})], COLUMNS)
+    assert "| x | n/a | **0.500** |" in table
+
+
+def test_csv_round_trip(tmp_path):
+    path = tmp_path / "t.csv"
+    write_csv(ROWS, COLUMNS, path)
+    rows = list(csv.DictReader(path.open()))
+    assert rows[1]["model"] == "mean-shape" and float(rows[1]["iou_std"]) == 0.05
+    assert not (tmp_path / "t.csv.tmp").exists()
+
+
+def test_read_logged_metrics_takes_last_value(tmp_path):
+    path = tmp_path / "metrics.csv"
+    path.write_text("epoch,test/iou_mean,val/loss\n0,,1.0\n1,0.7,\n2,0.75,\n")
+    assert read_logged_metrics(path) == {"iou_mean": 0.75}
