@@ -1,0 +1,63 @@
+"""geometry.marching_cubes: radius, orientation, closing at the boundary, empty and NaN grids."""
+
+import numpy as np
+import pytest
+import torch
+
+from radar2shape.geometry.marching_cubes import extract_mesh, grid_points, sdf_grid_to_mesh
+
+
+def sphere_sdf(resolution, radius, centre=(0.0, 0.0, 0.0), bounds=(-0.5, 0.5)):
+    points = grid_points(resolution, bounds).reshape((resolution,) * 3 + (3,))
+    return np.linalg.norm(points - np.asarray(centre), axis=-1) - radius
+
+
+@pytest.mark.parametrize("bounds, centre", [((-0.5, 0.5), (0.0, 0.0, 0.0)), ((-1.0, 0.25), (-0.4, 0.05, -0.1))])
+def test_sphere_has_the_right_radius_and_outward_normals(bounds, centre):
+    centre = np.asarray(centre)
+    mesh = sdf_grid_to_mesh(sphere_sdf(48, 0.2, centre, bounds), bounds)
+    radii = np.linalg.norm(mesh.vertices - centre, axis=1)
+    spacing = (bounds[1] - bounds[0]) / 47
+    assert abs(radii.mean() - 0.2) < 0.02 * spacing  # vertices are linear interpolations of an exact SDF
+    assert np.abs(radii - 0.2).max() < 0.1 * spacing
+    assert mesh.is_watertight and mesh.volume > 0  # positive volume <=> outward normals
+    assert np.all(np.einsum("ij,ij->i", mesh.face_normals, mesh.triangles_center - centre) > 0)
+
+
+def test_surface_cut_by_the_grid_is_capped_at_the_boundary():
+    points = grid_points(32).reshape(32, 32, 32, 3)
+    cube = np.abs(points).max(axis=-1) - 0.7  # larger than the grid: everything inside
+    mesh = sdf_grid_to_mesh(cube)
+    assert mesh.is_watertight and mesh.volume > 0
+    assert np.allclose(mesh.bounds, [[-0.5] * 3, [0.5] * 3], atol=1e-3 / 31)
+
+
+def test_no_zero_crossing_or_all_nan_is_empty():
+    assert len(sdf_grid_to_mesh(np.ones((8, 8, 8))).faces) == 0
+    assert len(sdf_grid_to_mesh(np.full((8, 8, 8), np.nan)).faces) == 0
+
+
+def test_nan_counts_as_outside():
+    sdf = sphere_sdf(32, 0.3)
+    clean = sdf_grid_to_mesh(sdf)
+    sdf[0, 0, 0] = sdf[31, 5, 7] = np.nan  # far from the surface
+    assert np.isclose(sdf_grid_to_mesh(sdf).volume, clean.volume)
+
+
+def test_rejects_non_cubic_grids():
+    with pytest.raises(ValueError, match="cubic"):
+        sdf_grid_to_mesh(np.zeros((4, 4, 5)))
+
+
+def test_extract_mesh_evaluates_in_chunks_and_matches_the_grid_path():
+    calls = []
+
+    def sdf_fn(points: torch.Tensor) -> torch.Tensor:
+        calls.append(len(points))
+        assert not torch.is_grad_enabled()
+        return (points.norm(dim=-1) - 0.3).unsqueeze(-1)  # [M, 1] is accepted
+
+    mesh = extract_mesh(sdf_fn, resolution=24, batch_points=5000)
+    assert max(calls) == 5000 and sum(calls) == 24**3
+    reference = sdf_grid_to_mesh(sphere_sdf(24, 0.3))
+    assert np.allclose(mesh.vertices, reference.vertices, atol=1e-6)
