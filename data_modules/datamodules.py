@@ -1,0 +1,150 @@
+"""LightningDataModules over built datasets: ``ShapeDataModule`` (3D) and ``ProfileDataModule``.
+
+Both read the manifest at construction, so ``class_names``, ``num_classes`` and ``radar_shape``
+are known before a model is built (LightningCLI can link them). Options (see docs/data.md):
+observability and noise per split, dB floor, point subset sizes per split.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import lightning as L
+from torch.utils.data import DataLoader
+
+from data_modules.datasets import EpochSampler, ProfileDataset, RecordDataset, RecordSet
+from data_modules.manifest import radar_db_stats, read_manifest
+from data_modules.radar_transform import RadarTransform
+from data_modules.records import write_json
+from radar2shape.errors import UserInputError
+
+DEFAULT_POINTS = {
+    "train": {"surface": 2048, "sdf": 8192},
+    "val": {"surface": 2048, "sdf": 8192, "eval": 30000, "occ": 100000},
+    "test": {"surface": 2048, "sdf": 8192, "eval": 30000, "occ": 100000},
+}
+
+
+class ShapeDataModule(L.LightningDataModule):
+    """Batches of 3D radar ``[B, A, R, F]`` with shape targets (docs/contracts.md batch keys).
+
+    Args:
+        root: dataset folder written by ``radar2shape build-data``.
+        observability: "partial" (train: random windows keeping ``train_keep`` of each axis;
+            val/test: a fixed-seed window keeping ``test_keep``) or "full".
+        train_noise_db: None, a level in dB, or a ``[low, high]`` range drawn per sample.
+        test_noise_db: None or a level in dB (val and test).
+        points: per split, subset sizes of surface/sdf/eval/occ points (-1 all, 0 none);
+            merged over ``DEFAULT_POINTS``.
+    """
+
+    dataset_class = RecordDataset
+
+    def __init__(self, root: str = "data/parts", batch_size: int = 16, num_workers: int = 0, seed: int = 0,
+                 floor_db: float = -100.0, observability: str = "partial",
+                 train_keep: tuple[float, float] = (0.3, 1.0), test_keep: float = 0.3,
+                 train_noise_db: float | tuple[float, float] | None = None, test_noise_db: float | None = None,
+                 points: dict[str, dict[str, int]] | None = None, pin_memory: bool = False):
+        super().__init__()
+        self.save_hyperparameters()
+        self.root = Path(root)
+        self.manifest = read_manifest(self.root)
+        self.class_names: list[str] = list(self.manifest["classes"])
+        self.num_classes = len(self.class_names)
+        self.points = {split: {**DEFAULT_POINTS[split], **((points or {}).get(split) or {})} for split in DEFAULT_POINTS}
+        self.stats = self._radar_stats(floor_db)
+        self.datasets: dict[str, RecordDataset] = {}
+
+    @property
+    def radar_shape(self) -> tuple[int, ...]:
+        """Shape of one radar input: ``(A, R, F)``."""
+        radar = self.manifest["radar"]
+        return len(radar["aspect_rad"]), len(radar["roll_rad"]), len(radar["freq_hz"])
+
+    def _radar_stats(self, floor_db: float) -> dict:
+        """Train dB mean/std: from the manifest when its floor matches, else computed once and cached."""
+        stored = self.manifest.get("radar_stats")
+        if stored and stored["floor_db"] == floor_db:
+            return stored
+        cache = self.root / f"radar_stats_floor{floor_db:g}.json"
+        if cache.is_file():
+            return json.loads(cache.read_text())
+        train = self.train_records()
+        stats = radar_db_stats([train.path(i) for i in range(len(train))], floor_db)
+        try:
+            write_json(cache, stats)
+        except OSError:  # read-only dataset folder: keep the statistics in memory only
+            pass
+        return stats
+
+    def records(self, split: str) -> RecordSet:
+        """Raw records of ``split`` (lazy)."""
+        if split not in self.manifest["splits"]:
+            raise UserInputError(f"{self.root}: no split {split!r} (has {sorted(self.manifest['splits'])})")
+        return RecordSet(self.root, split, self.manifest["splits"][split])
+
+    def train_records(self) -> RecordSet:
+        """Raw train records, e.g. for nearest-neighbour baselines (``record["radar"]`` is complex)."""
+        return self.records("train")
+
+    def transform(self, split: str) -> RadarTransform:
+        hp = self.hparams
+        train = split == "train"
+        return RadarTransform(
+            mean=self.stats["mean"], std=self.stats["std"], floor_db=hp.floor_db, observability=hp.observability,
+            keep=tuple(hp.train_keep) if train else hp.test_keep,
+            noise_db=hp.train_noise_db if train else hp.test_noise_db, mask_seed=hp.seed,
+        )
+
+    def dataset(self, split: str) -> RecordDataset:
+        """The dataset of ``split`` (built on first use)."""
+        if split not in self.datasets:
+            records = self.records(split)
+            if len(records) == 0:
+                raise UserInputError(f"{self.root}: split {split!r} has no records")
+            self.datasets[split] = self.dataset_class(
+                records, self.manifest["labels"][split], self.transform(split), self.points[split],
+                train=split == "train", seed=self.hparams.seed,
+            )
+        return self.datasets[split]
+
+    def _loader(self, split: str) -> DataLoader:
+        dataset = self.dataset(split)
+        workers = self.hparams.num_workers
+        return DataLoader(
+            dataset, batch_size=self.hparams.batch_size, num_workers=workers,
+            sampler=EpochSampler(len(dataset), shuffle=split == "train", seed=self.hparams.seed),
+            persistent_workers=workers > 0, pin_memory=self.hparams.pin_memory,
+        )
+
+    def train_dataloader(self) -> DataLoader:
+        return self._loader("train")
+
+    def val_dataloader(self) -> DataLoader:
+        return self._loader("val")
+
+    def test_dataloader(self) -> DataLoader:
+        return self._loader("test")
+
+    def predict_dataloader(self) -> DataLoader:
+        return self._loader("test")
+
+
+class ProfileDataModule(ShapeDataModule):
+    """Roll-symmetric batches: radar ``[B, A, F]`` at roll 0, mask ``[B, A]``, ``profile [B, P, 2]``."""
+
+    dataset_class = ProfileDataset
+
+    def __init__(self, root: str = "data/frusta", **kwargs):
+        super().__init__(root, **kwargs)
+        if self.manifest.get("profile_points") is None:
+            raise UserInputError(f"{self.root}: records have no profiles (family {self.manifest['family']!r}); "
+                                 "ProfileDataModule needs a roll-symmetric family such as frusta")
+        self.profile_points: int = self.manifest["profile_points"]
+
+    @property
+    def radar_shape(self) -> tuple[int, ...]:
+        """Shape of one radar input: ``(A, F)``."""
+        aspect, _, freq = super().radar_shape
+        return aspect, freq

@@ -1,0 +1,139 @@
+"""Datasets over built records: raw access, and the training view with masks, noise and subsets.
+
+Randomness is a pure function of ``(seed, split, epoch, index)``, so an item is the same in any
+DataLoader worker, with any number of workers, and on every DDP rank; the epoch reaches the
+dataset through the index itself (``EpochSampler`` yields ``(epoch, index)`` pairs) because
+worker processes never see attributes set on the main-process dataset.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset, Sampler
+
+from data_modules.radar_transform import RadarTransform
+from data_modules.records import read_record, record_path
+
+POINT_KEYS = {  # subset name -> record keys sharing one index set
+    "surface": ("surface_points", "surface_normals"),
+    "sdf": ("sdf_points", "sdf_values"),
+    "eval": ("eval_points",),
+    "occ": ("occ_points", "occ_inside"),
+}
+_SPLIT_CODES = {"train": 0, "val": 1, "test": 2}
+
+
+class RecordSet(Sequence):
+    """Lazy read-only access to the raw records of one split (baselines, plots, statistics)."""
+
+    def __init__(self, root: str | Path, split: str, record_ids: list[str], keys: Sequence[str] | None = None):
+        self.root, self.split, self.record_ids = Path(root), split, list(record_ids)
+        self.keys = None if keys is None else tuple(keys)
+
+    def __len__(self) -> int:
+        return len(self.record_ids)
+
+    def path(self, index: int) -> Path:
+        return record_path(self.root, self.split, self.record_ids[index])
+
+    def __getitem__(self, index: int) -> dict:
+        if not -len(self) <= index < len(self):
+            raise IndexError(index)
+        return read_record(self.path(index), self.keys)
+
+
+class EpochSampler(Sampler):
+    """Yields ``(epoch, index)``; shuffles with a generator seeded by ``(seed, epoch)``.
+
+    Lightning calls ``set_epoch`` before each epoch; without it (plain loops, DDP wrappers) the
+    epoch advances by one per pass, which gives the same sequence on every rank.
+    """
+
+    def __init__(self, length: int, shuffle: bool = True, seed: int = 0):
+        self.length, self.shuffle, self.seed, self.epoch = length, shuffle, seed, 0
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = epoch
+
+    def __len__(self) -> int:
+        return self.length
+
+    def __iter__(self) -> Iterator[tuple[int, int]]:
+        epoch = self.epoch
+        self.epoch += 1
+        order = np.random.default_rng([self.seed, epoch]).permutation(self.length) if self.shuffle else range(self.length)
+        return iter([(epoch, int(i)) for i in order])
+
+
+class RecordDataset(Dataset):
+    """Items with the batch keys of docs/contracts.md for the full 3D radar ``[A, R, F]``.
+
+    ``points`` maps a subset name (surface, sdf, eval, occ) to a count: ``-1`` = all stored
+    points, missing or 0 = leave the keys out; evaluation takes at most the stored count
+    (training draws with replacement past it). Training draws a fresh random subset per epoch;
+    evaluation takes the first points (records store them in random order), so it is fixed.
+    """
+
+    def __init__(self, records: RecordSet, labels: list[int], transform: RadarTransform, points: dict[str, int],
+                 train: bool, seed: int = 0):
+        unknown = sorted(set(points) - set(POINT_KEYS))
+        if unknown:
+            raise ValueError(f"points: unknown subset(s) {unknown}; expected some of {sorted(POINT_KEYS)}")
+        self.records, self.labels, self.transform = records, labels, transform
+        self.points = {name: int(n) for name, n in points.items() if n}
+        self.train, self.seed = train, seed
+        self.keys = ["radar"] + [key for name in self.points for key in POINT_KEYS[name]] + self.extra_keys()
+
+    def extra_keys(self) -> list[str]:
+        return []
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def rng(self, epoch: int, index: int) -> np.random.Generator:
+        split = _SPLIT_CODES.get(self.records.split, 3)
+        return np.random.default_rng([self.seed, split, epoch if self.train else 0, index])
+
+    def _subset(self, size: int, n: int, rng: np.random.Generator) -> slice | np.ndarray:
+        if n < 0:
+            return slice(None)
+        if self.train:
+            return rng.choice(size, n, replace=n > size)
+        return slice(0, n)  # at most the stored count (every record of a dataset stores the same)
+
+    def radar(self, response: np.ndarray, rng: np.random.Generator, index: int) -> tuple[np.ndarray, np.ndarray]:
+        return self.transform(response, rng, index)
+
+    def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
+        epoch, index = key if isinstance(key, tuple) else (0, key)
+        rng = self.rng(epoch, index)
+        record = read_record(self.records.path(index), self.keys)
+        radar, mask = self.radar(record["radar"], rng, index)
+        item = {"radar": radar, "radar_mask": mask,
+                "label": np.int64(self.labels[index]), "index": np.int64(index)}
+        for name, n in self.points.items():
+            first = record[POINT_KEYS[name][0]]
+            chosen = self._subset(len(first), n, rng)
+            for record_key in POINT_KEYS[name]:
+                item[record_key] = record[record_key][chosen]
+        if "occ_points" in item:
+            item["occ_points"] = item["occ_points"].astype(np.float32)
+        for extra in self.extra_keys():
+            item[extra] = record[extra]
+        return {k: torch.from_numpy(np.ascontiguousarray(v)) if isinstance(v, np.ndarray) else torch.tensor(v)
+                for k, v in item.items()}
+
+
+class ProfileDataset(RecordDataset):
+    """Roll-symmetric view: radar ``[A, F]`` at roll 0, aspect-only mask ``[A]``, and the profile."""
+
+    def extra_keys(self) -> list[str]:
+        return ["profile"]
+
+    def radar(self, response, rng, index):
+        radar, mask = self.transform(response[:, :1], rng, index)
+        return radar[:, 0], mask[:, 0]

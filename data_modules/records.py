@@ -1,0 +1,83 @@
+"""The on-disk record format: one ``.npz`` per shape, written atomically.
+
+Layout of a built dataset (see docs/data.md):
+    <root>/manifest.json                 splits, classes, config, counts, skipped inputs, radar stats
+    <root>/build_config.json             the effective build config (guards resumed builds)
+    <root>/records/<split>/<id>.npz      one record (keys: RECORD_KEYS)
+    <root>/records/<split>/<id>.skip.json   an input that was skipped, with the reason
+A record exists under its final name only once it is complete (temp file + ``os.replace``), so
+a killed build never leaves a half-written record, and resuming means "skip what exists".
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import uuid
+from pathlib import Path
+
+import numpy as np
+
+RECORD_KEYS = (
+    "vertices", "faces",                      # normalised watertight mesh (float32, int32)
+    "surface_points", "surface_normals",      # [Ns, 3] float32
+    "eval_points",                            # [Ne, 3] float32
+    "sdf_points", "sdf_values",               # [Nd, 3], [Nd] float32, negative inside
+    "occ_points", "occ_inside",               # [No, 3] float16 (uniform positions), [No] bool
+    "radar",                                  # complex64 [A, R, F], |S|^2 = RCS in m^2
+    "aspect_rad", "roll_rad", "freq_hz", "size_m",
+    "label", "class_name", "record_id", "split",
+    "provenance",                             # JSON text
+)  # plus "profile" [P, 2] float32 for roll-symmetric families
+
+
+def record_path(root: str | Path, split: str, record_id: str) -> Path:
+    return Path(root) / "records" / split / f"{record_id}.npz"
+
+
+def skip_path(root: str | Path, split: str, record_id: str) -> Path:
+    return Path(root) / "records" / split / f"{record_id}.skip.json"
+
+
+def _atomic_write(path: Path, write) -> None:
+    """Write via ``write(stream)`` to a unique temp file beside ``path``, fsync, then rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
+    try:
+        with open(temp, "wb") as stream:
+            write(stream)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(temp, path)
+    finally:
+        temp.unlink(missing_ok=True)
+
+
+def write_record(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Atomically write a record (uncompressed: the arrays are random floats, and loads stay lazy)."""
+    _atomic_write(path, lambda stream: np.savez(stream, **arrays))
+
+
+def write_json(path: Path, data: dict) -> None:
+    """Atomically write ``data`` as indented, key-sorted JSON (stable bytes for equal content)."""
+    text = json.dumps(data, indent=1, sort_keys=True) + "\n"
+    _atomic_write(path, lambda stream: stream.write(text.encode()))
+
+
+def read_record(path: str | Path, keys: tuple[str, ...] | list[str] | None = None) -> dict:
+    """The arrays of one record (all, or only ``keys``); string scalars come back as ``str``."""
+    with np.load(path, allow_pickle=False) as data:
+        names = data.files if keys is None else [k for k in keys if k in data.files]
+        out = {name: data[name] for name in names}
+    for name, value in out.items():
+        if value.dtype.kind == "U":
+            out[name] = str(value)
+    return out
+
+
+def remove_stale_temps(root: str | Path) -> int:
+    """Delete temp files left by killed writers; call only when no writer is running."""
+    stale = list((Path(root) / "records").glob("*/.*.tmp"))
+    for path in stale:
+        path.unlink(missing_ok=True)
+    return len(stale)

@@ -1,0 +1,137 @@
+"""DataModules: batch keys, masks, noise, determinism, statistics and errors."""
+
+import gc
+
+import lightning as L
+import numpy as np
+import pytest
+import torch
+from conftest import REPO
+from jsonargparse import ArgumentParser
+
+from data_modules import ProfileDataModule, ShapeDataModule
+from data_modules.radar_transform import RadarTransform
+from radar2shape.errors import UserInputError
+
+SMALL_POINTS = {"train": {"surface": 64, "sdf": 128}, "val": {"surface": 64, "sdf": 128, "eval": 100, "occ": 200},
+                "test": {"surface": 64, "sdf": 128, "eval": 100, "occ": 200}}
+
+
+def _module(root, cls=ShapeDataModule, **kwargs):
+    return cls(str(root), batch_size=2, points=SMALL_POINTS, **kwargs)
+
+
+def _windows(mask_1d: np.ndarray) -> int:
+    """Number of contiguous True runs on a circle."""
+    return int(np.sum(mask_1d & ~np.roll(mask_1d, 1))) if not mask_1d.all() else 1
+
+
+def test_batches_hold_exactly_the_contract_keys(parts_dataset):
+    dm = _module(parts_dataset)
+    a, r, f = dm.radar_shape
+    assert dm.num_classes == len(dm.class_names) == 10
+    train = next(iter(dm.train_dataloader()))
+    assert set(train) == {"radar", "radar_mask", "surface_points", "surface_normals", "sdf_points", "sdf_values",
+                          "label", "index"}
+    test = next(iter(dm.test_dataloader()))
+    assert set(test) == set(train) | {"eval_points", "occ_points", "occ_inside"}
+    expected = {"radar": ((2, a, r, f), torch.float32), "radar_mask": ((2, a, r), torch.bool),
+                "surface_points": ((2, 64, 3), torch.float32), "surface_normals": ((2, 64, 3), torch.float32),
+                "sdf_points": ((2, 128, 3), torch.float32), "sdf_values": ((2, 128), torch.float32),
+                "eval_points": ((2, 100, 3), torch.float32), "occ_points": ((2, 200, 3), torch.float32),
+                "occ_inside": ((2, 200), torch.bool), "label": ((2,), torch.int64), "index": ((2,), torch.int64)}
+    for key, value in test.items():
+        assert (tuple(value.shape), value.dtype) == expected[key], key
+    assert (test["radar"][~test["radar_mask"]] == 0).all()
+
+
+def test_partial_observability_masks_one_window_per_axis(parts_dataset):
+    dm = _module(parts_dataset)
+    a, r, _ = dm.radar_shape
+    for split, check in (("train", lambda k: 0.3 - 1e-9 <= k <= 1.0), ("test", lambda k: abs(k - 0.3) <= 1.0 / 16 + 1e-9)):
+        dataset = dm.dataset(split)
+        for index in range(len(dataset)):
+            mask = dataset[(0, index)]["radar_mask"].numpy()
+            rows, cols = mask.any(axis=1), mask.any(axis=0)
+            assert (mask == np.outer(rows, cols)).all()  # a window: product of one run per axis
+            assert _windows(rows) == 1 and _windows(cols) == 1
+            assert check(rows.mean()) and check(cols.mean()), (split, rows.mean(), cols.mean())
+    full = _module(parts_dataset, observability="full").dataset("test")[0]
+    assert full["radar_mask"].all()
+
+
+def test_items_are_deterministic_and_fresh_each_epoch(parts_dataset):
+    dataset = _module(parts_dataset).dataset("train")
+    first, again, later = dataset[(0, 1)], dataset[(0, 1)], dataset[(1, 1)]
+    for key in first:
+        assert torch.equal(first[key], again[key])
+    assert not torch.equal(first["sdf_points"], later["sdf_points"])
+    test = _module(parts_dataset).dataset("test")
+    assert torch.equal(test[(0, 0)]["radar"], test[(5, 0)]["radar"])
+
+
+def test_batches_do_not_depend_on_the_number_of_workers(parts_dataset):
+    batches = []
+    for workers in (0, 2):
+        dm = _module(parts_dataset, num_workers=workers, train_noise_db=(-80.0, -40.0))
+        loader = dm.train_dataloader()
+        loader.sampler.set_epoch(3)
+        batches.append(list(loader))
+        del loader  # stop the persistent workers now, not at some later garbage collection
+        gc.collect()
+    for one, two in zip(*batches):
+        for key in one:
+            assert torch.equal(one[key], two[key]), key
+
+
+@pytest.mark.parametrize("level", [-60.0, -40.0])
+def test_noise_has_the_stated_power(level):
+    transform = RadarTransform(mean=0.0, std=1.0, floor_db=-400.0, observability="full", noise_db=level)
+    radar, _ = transform(np.zeros((64, 64, 64), np.complex64), np.random.default_rng(0), 0)
+    power = np.mean(10.0 ** (radar.astype(np.float64) / 10.0))
+    assert power == pytest.approx(10.0 ** (level / 10.0), rel=0.03)
+
+
+def test_noise_is_added_before_the_db_conversion(parts_dataset):
+    clean = _module(parts_dataset, observability="full").dataset("test")[0]["radar"]
+    noisy = _module(parts_dataset, observability="full", test_noise_db=-20.0).dataset("test")[0]["radar"]
+    assert not torch.equal(clean, noisy)
+
+
+def test_statistics_for_another_floor_are_computed_once_and_cached(parts_dataset):
+    dm = _module(parts_dataset, floor_db=-60.0)
+    assert (parts_dataset / "radar_stats_floor-60.json").is_file()
+    assert dm.stats["floor_db"] == -60.0 and dm.stats != _module(parts_dataset).stats
+
+
+def test_train_records_give_raw_complex_radar(parts_dataset):
+    records = _module(parts_dataset).train_records()
+    assert len(records) == _module(parts_dataset).manifest["counts"]["train"]
+    assert np.iscomplexobj(records[0]["radar"])
+
+
+def test_profile_module_reduces_radar_to_aspect_by_frequency(frusta_dataset, parts_dataset):
+    dm = _module(frusta_dataset, ProfileDataModule)
+    a, f = dm.radar_shape
+    batch = next(iter(dm.test_dataloader()))
+    assert batch["radar"].shape == (2, a, f) and batch["radar_mask"].shape == (2, a)
+    assert batch["profile"].shape == (2, dm.profile_points, 2) and batch["profile"].dtype == torch.float32
+    assert (batch["radar"][~batch["radar_mask"]] == 0).all()
+    assert _windows(batch["radar_mask"][0].numpy()) == 1
+    with pytest.raises(UserInputError, match="no profiles"):
+        _module(parts_dataset, ProfileDataModule)
+
+
+def test_missing_dataset_names_the_path_and_the_fix(tmp_path):
+    with pytest.raises(UserInputError, match=r"nowhere.*make data"):
+        ShapeDataModule(str(tmp_path / "nowhere"))
+    (tmp_path / "half").mkdir()
+    with pytest.raises(UserInputError, match=r"manifest.json not found.*resumes"):
+        ShapeDataModule(str(tmp_path / "half"))
+
+
+def test_lightning_cli_data_configs_parse():
+    for path in sorted((REPO / "conf/data/module").glob("*.yaml")):
+        parser = ArgumentParser()
+        parser.add_subclass_arguments(L.LightningDataModule, "data")
+        assert parser.parse_args([f"--data={path}"]).data.class_path.startswith("data_modules.")
