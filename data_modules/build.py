@@ -51,6 +51,7 @@ def _check_config(root: Path, config: BuildConfig) -> None:
     current = config.to_dict()
     if path.exists():
         previous = json.loads(path.read_text())
+        previous.setdefault("simulator", {})  # builds from before the simulator section used PO
         if previous != current:
             changed = sorted(k for k in set(previous) | set(current) if previous.get(k) != current.get(k))
             raise UserInputError(f"{root} holds a build with a different config (changed: {', '.join(changed)}); "

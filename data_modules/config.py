@@ -31,6 +31,7 @@ class BuildConfig:
     mesh: MeshConfig = field(default_factory=MeshConfig)
     sampling: SamplingConfig = field(default_factory=SamplingConfig)
     radar: dict = field(default_factory=dict)  # resolved RadarGrid.from_config keys
+    simulator: dict = field(default_factory=dict)  # simulate() options: method, max_bounces, ...
     floor_db: float = -100.0  # dB floor of the radar statistics stored in the manifest
 
     def to_dict(self) -> dict:
@@ -84,6 +85,20 @@ def _radar_section(value, source: Path) -> dict:
     return value
 
 
+SIMULATOR_KEYS = {"method", "max_bounces", "rays_per_wavelength", "shadowing"}
+
+
+def _simulator_section(value, source: Path) -> dict:
+    """Options passed to ``simulate`` (empty = physical optics with shadowing)."""
+    value = dict(value or {})
+    unknown = sorted(set(value) - SIMULATOR_KEYS)
+    if unknown:
+        raise UserInputError(f"{source}: unknown key(s) {unknown} in 'simulator'; expected some of {sorted(SIMULATOR_KEYS)}")
+    if value.get("method", "po") not in ("po", "sbr"):
+        raise UserInputError(f"{source}: simulator.method must be 'po' or 'sbr', got {value['method']!r}")
+    return value
+
+
 def load_build_config(path: str | Path, num: int | None = None) -> BuildConfig:
     """Read and check a data config; ``num`` overrides its ``num``."""
     path = Path(path)
@@ -107,6 +122,7 @@ def load_build_config(path: str | Path, num: int | None = None) -> BuildConfig:
         mesh=_section(MeshConfig, raw.get("mesh"), "mesh", str(path)),
         sampling=_section(SamplingConfig, raw.get("sampling"), "sampling", str(path)),
         radar=_radar_section(raw.get("radar", "conf/radar/default.yaml"), path),
+        simulator=_simulator_section(raw.get("simulator"), path),
         floor_db=float(raw.get("floor_db", -100.0)),
     )
     if "root" in config.family_options:

@@ -34,7 +34,7 @@ class RecordBuilder:
         """
         grid = self.grid
         roll = grid.roll_rad[:1] if self.family.roll_symmetric else grid.roll_rad
-        response = simulate(scaled(mesh, grid.size_m), grid.aspect_rad, roll, grid.freq_hz)
+        response = simulate(scaled(mesh, grid.size_m), grid.aspect_rad, roll, grid.freq_hz, **self.config.simulator)
         shape = (len(grid.aspect_rad), len(grid.roll_rad), len(grid.freq_hz))
         return np.ascontiguousarray(np.broadcast_to(response, shape), dtype=np.complex64)
 

@@ -1,4 +1,4 @@
-"""``radar2shape simulate MESH --out OUT.npz``: the PO radar response of one mesh file.
+"""``radar2shape simulate MESH --out OUT.npz``: the PO (or PO + SBR) radar response of one mesh file.
 
 The axes come from ``--grid`` (default conf/radar/default.yaml's values) and can be overridden
 one by one with START:STOP:COUNT (both ends included). The mesh is centred and scaled so its
@@ -44,7 +44,11 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     size.add_argument("--size-m", type=float, help="longest bbox side in metres after centring (default: grid size_m)")
     size.add_argument("--keep-size", action="store_true", help="simulate the mesh as given, in metres")
     parser.add_argument("--no-shadow", action="store_true", help="back-face culling only (no occlusion rays)")
-    parser.add_argument("--method", default="po", choices=["po", "sbr"], help="po (sbr lands later)")
+    parser.add_argument("--method", default="po", choices=["po", "sbr"],
+                        help="po, or sbr: PO first bounce + shooting and bouncing rays (docs/sbr_lora.md)")
+    parser.add_argument("--bounces", type=int, default=5, help="sbr: bounces traced, >= 1 (1 = PO only)")
+    parser.add_argument("--rays-per-wavelength", type=float, default=8.0,
+                        help="sbr: ray tubes per wavelength at the highest frequency, > 0")
     parser.add_argument("--plot", help="also write a PNG of the dB response")
 
 
@@ -62,8 +66,9 @@ def main(args: argparse.Namespace) -> int:
     if size is not None:
         mesh = scaled(normalise(mesh)[0], size)
     start = time.perf_counter()
+    sbr_options = {"max_bounces": args.bounces, "rays_per_wavelength": args.rays_per_wavelength}
     response = simulate(mesh, grid.aspect_rad, grid.roll_rad, grid.freq_hz, method=args.method,
-                        shadowing=not args.no_shadow)
+                        shadowing=not args.no_shadow, **(sbr_options if args.method == "sbr" else {}))
     seconds = time.perf_counter() - start
     out = save_response(args.out, response, grid.aspect_rad, grid.roll_rad, grid.freq_hz, size_m=size)
     print(f"wrote {out}: response {list(response.shape)} (aspect, roll, freq), "

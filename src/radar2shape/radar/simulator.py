@@ -9,11 +9,11 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from radar2shape.errors import UserInputError
-from radar2shape.radar import po
+from radar2shape.radar import po, sbr
 from radar2shape.radar.facets import FacetMesh, facet_mesh
 from radar2shape.radar.shadow import Occluder
 
-METHODS = ("po",)
+METHODS = ("po", "sbr")
 # Facet-direction pairs per chunk: the [F, chunk] float64 work arrays stay near cache size
 # (about 1 MB), and the Embree batch is still large enough for its call overhead not to matter.
 CHUNK_ENTRIES = 2**17
@@ -66,18 +66,22 @@ def worker_count() -> int:
 
 
 def simulate(mesh, aspect_rad, roll_rad, freq_hz, method: str = "po", shadowing: bool = True,
-             dtype=np.complex64) -> np.ndarray:
+             dtype=np.complex64, max_bounces: int = sbr.DEFAULT_BOUNCES,
+             rays_per_wavelength: float = sbr.DEFAULT_RAYS_PER_WAVELENGTH) -> np.ndarray:
     """Complex monostatic response S [N_aspect, N_roll, N_freq] of a PEC mesh, |S|^2 = RCS (m^2).
 
     ``mesh`` (trimesh.Trimesh or (vertices, faces)) is in metres as given, the phase referenced
     to its coordinate origin; the radar looks from u = (sin a cos p, sin a sin p, cos a).
     ``shadowing`` adds Embree occlusion rays to back-face culling (facet-level PO shadowing,
     right for non-convex bodies). Degenerate faces are dropped. PO gives HH = VV.
+    ``method="sbr"`` adds the shooting-and-bouncing-rays sum of bounces 2..``max_bounces``
+    (``rays_per_wavelength`` at the highest frequency; theta-theta polarisation) to the PO
+    first bounce: see radar/sbr.py and docs/sbr_lora.md.
     """
-    if method == "sbr":
-        raise UserInputError("method 'sbr' (shooting and bouncing rays) is not implemented yet; use method='po'")
     if method not in METHODS:
         raise UserInputError(f"method: expected one of {METHODS}, got {method!r}")
+    if method == "sbr":
+        sbr.check_options(max_bounces, rays_per_wavelength)
     real_dtype = _real_dtype(dtype)
     aspect, roll, freq = check_axes(aspect_rad, roll_rad, freq_hz)
     facets = mesh if isinstance(mesh, FacetMesh) else facet_mesh(mesh)
@@ -112,6 +116,8 @@ def simulate(mesh, aspect_rad, roll_rad, freq_hz, method: str = "po", shadowing:
     else:
         for chunk in chunks:
             run(chunk)
+    if method == "sbr":
+        out += sbr.multibounce(facets, u, k, max_bounces, rays_per_wavelength, real_dtype).astype(dtype)
     # Put back the phase of the local origin: S(origin) = S(local) exp(2jk u.o).
     out *= po.cis(np.outer(2.0 * (u @ facets.origin), k)).astype(dtype)
     return out[inverse].reshape(len(aspect), len(roll), len(k))
