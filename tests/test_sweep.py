@@ -1,0 +1,165 @@
+"""The grid runner: grid parsing, one folder per run, and resuming after a kill (toy sphere config)."""
+
+import json
+
+import pytest
+import torch
+import yaml
+
+from radar2shape import cli, sweep
+from radar2shape.errors import UserInputError
+
+TOY = "conf/experiment/toy_sphere.yaml"
+TINY = {
+    "trainer.max_epochs": 1,
+    "trainer.enable_progress_bar": False,
+    "trainer.enable_model_summary": False,
+    "data.init_args.num_train": 16,
+    "data.init_args.num_val": 8,
+}
+
+
+def write_grid(tmp_path, **spec):
+    path = tmp_path / "grid.yaml"
+    path.write_text(yaml.safe_dump({"out_dir": str(tmp_path / "runs"), **spec}, sort_keys=False))
+    return path
+
+
+def toy_grid(tmp_path):
+    matrix = {"hidden": {"h8": {"overrides": {"model.init_args.hidden": 8}}, "h16": {"overrides": {"model.init_args.hidden": 16}}}}
+    return write_grid(tmp_path, configs=[TOY], overrides=TINY, matrix=matrix, threads=1)
+
+
+def test_matrix_expands_in_order_and_later_axes_win(tmp_path):
+    matrix = {
+        "model": {"a": {"configs": ["m_a.yaml"], "overrides": {"x": 1}}, "b": {"overrides": {"x": 2}}},
+        "noise": {"low": {"overrides": {"x": 3, "n": -80}}, "high": {"overrides": {"n": -40}}},
+    }
+    grid = sweep.load_grid(write_grid(tmp_path, configs=["base.yaml"], overrides={"e": 1}, matrix=matrix,
+                                      runs=[{"name": "extra", "overrides": {"e": 2}}]))
+    assert [r.name for r in grid.runs] == ["a-low", "a-high", "b-low", "b-high", "extra"]
+    first = grid.runs[0]
+    assert first.configs == ["base.yaml", "m_a.yaml"]
+    assert first.overrides == {"e": 1, "x": 3, "n": -80}
+    assert grid.runs[-1].overrides == {"e": 2}
+    args = first.args(tmp_path / "r")
+    assert args[:2] == ["--config=base.yaml", "--config=m_a.yaml"]
+    assert "--n=-80" in args and args[-1] == f"--trainer.default_root_dir={tmp_path / 'r'}"
+
+
+@pytest.mark.parametrize(
+    "spec, message",
+    [
+        ({"runs": [{"name": "a"}, {"name": "a"}]}, "duplicate"),
+        ({"runs": [{"name": "a/b"}]}, "run name"),
+        ({"runs": [{"configs": []}]}, "needs a 'name'"),
+        ({"runs": [{"name": "a"}], "bogus": 1}, "unknown keys"),
+        ({}, "no runs"),
+    ],
+)
+def test_bad_grids_raise_clear_errors(tmp_path, spec, message):
+    with pytest.raises(UserInputError, match=message):
+        sweep.load_grid(write_grid(tmp_path, **spec))
+
+
+def test_missing_grid_file_exits_2(tmp_path, capsys):
+    assert sweep.main([str(tmp_path / "nope.yaml")]) == 2
+    assert "grid file not found" in capsys.readouterr().err
+
+
+def test_killed_sweep_resumes_and_skips_finished_runs(tmp_path, monkeypatch):
+    grid_path = toy_grid(tmp_path)
+    real_main = cli.main
+    calls = []
+
+    def killed_during_second_fit(args):
+        calls.append((args[0], args[-1]))
+        code = real_main(args)
+        if len(calls) == 3:  # fit h8, test h8, fit h16 -> "killed" before h16's test
+            raise KeyboardInterrupt
+        return code
+
+    monkeypatch.setattr(cli, "main", killed_during_second_fit)
+    with pytest.raises(KeyboardInterrupt):
+        sweep.main([str(grid_path)])
+    runs = tmp_path / "runs"
+    assert (runs / "h8" / "done").is_file() and not (runs / "h16" / "done").exists()
+    h8_done = (runs / "h8" / "done").stat().st_mtime_ns
+
+    calls.clear()
+    monkeypatch.setattr(cli, "main", lambda args: calls.append(args[0]) or real_main(args))
+    assert sweep.main([str(grid_path)]) == 0
+    assert calls == ["fit", "test"]  # only the unfinished run, from scratch
+    assert (runs / "h8" / "done").stat().st_mtime_ns == h8_done
+    record = json.loads((runs / "h16" / "done").read_text())
+    assert record["name"] == "h16" and record["wall_seconds"] > 0
+    assert (runs / "h16" / record["checkpoint"]).is_file()
+    assert "radius_l1" in json.loads((runs / "h16" / "metrics.json").read_text())
+    assert len(list((runs / "h16" / "fit").glob("version_*"))) == 1  # partial logs were cleared
+
+    calls.clear()
+    threads = torch.get_num_threads()
+    assert sweep.main([str(grid_path)]) == 0 and calls == []
+    assert torch.get_num_threads() == threads  # the grid's `threads: 1` applied only while it ran
+
+
+def test_prepare_threads_and_report_keys(tmp_path):
+    grid = sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], threads=1, report="scripts/x.py",
+                                      prepare=[["build-data", "--config", "c.yaml", "--num", 3]]))
+    assert grid.threads == 1 and grid.report == "scripts/x.py"
+    assert grid.prepare == [["build-data", "--config", "c.yaml", "--num", "3"]]
+    with pytest.raises(UserInputError, match="prepare"):
+        sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], prepare="build-data"))
+    with pytest.raises(UserInputError, match="threads"):
+        sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], threads=0))
+
+
+def test_rollsym_table_reads_finished_runs(tmp_path):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("rollsym_table", cli.__file__.replace("src/radar2shape/cli.py", "scripts/rollsym_table.py"))
+    table = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(table)
+    matrix = {axis: {v: {} for v in values} for axis, values in
+              {"model": ["unet", "invrt"], "obs": ["full", "partial"], "noise": ["low"]}.items()}
+    grid_path = write_grid(tmp_path, matrix=matrix)
+    for name, iou_s in {"unet-full-low": 0.9, "invrt-full-low": 0.7, "invrt-partial-low": 0.5}.items():
+        run_dir = tmp_path / "runs" / name
+        run_dir.mkdir(parents=True)
+        (run_dir / "metrics.json").write_text(json.dumps({"iou_s_mean": iou_s, "iou_s_std": 0.1, "iou_r_mean": 0.5,
+                                                          "iou_r_std": 0.2, "match_s_mean": 0.05, "match_s_std": 0.01}))
+        (run_dir / "done").write_text(json.dumps({"wall_seconds": 60.0}))
+    text = table.build_table(grid_path, tmp_path / "report")
+    assert "| Profile U-Net diffusion (ours) | **0.500 ± 0.200** | **0.900 ± 0.100** | **0.050 ± 0.010** | n/a | n/a | n/a |" in text
+    assert "3 of 4 runs finished; summed wall time of the runs 3.0 min" in text
+    assert (tmp_path / "report" / "table.csv").read_text().startswith("model,full_iou_r_mean")
+
+
+@pytest.mark.slow
+def test_sigkill_mid_sweep_then_rerun(tmp_path):
+    """A real kill (SIGKILL to the process group) once the first run is done; about 30 s."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    grid_path = toy_grid(tmp_path)
+    done = tmp_path / "runs" / "h8" / "done"
+    command = [sys.executable, "-m", "radar2shape.sweep", str(grid_path)]
+    process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 240
+        while not done.exists() and process.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert done.exists(), "the first run did not finish in time"
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    finished = done.stat().st_mtime_ns
+    result = subprocess.run(command, capture_output=True, text=True, timeout=240)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "h8: done, skipped" in result.stdout
+    assert done.stat().st_mtime_ns == finished
+    assert (tmp_path / "runs" / "h16" / "done").is_file()
