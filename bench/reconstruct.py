@@ -1,0 +1,96 @@
+"""Benchmark: seconds per reconstruction (radar -> mesh) of Radar2Shape Stage 2 on the CPU.
+
+    python bench/reconstruct.py [--ckpt RUN/checkpoints/last.ckpt] [--steps 50] [--resolution 64]
+
+One radar input, one sample, DDIM with ``--steps`` steps, marching cubes on a ``--resolution``^3
+grid: the path ``radar2shape reconstruct`` and the metric callback run. Without ``--ckpt`` the
+models are built from conf/model/sdf_vae_cpu.yaml and conf/model/radar_diffusion_cpu.yaml, with
+Stage 1 fitted to a sphere for 100 steps so marching cubes meets a real surface (the time of
+sampling does not depend on the weights). Target: < 2 s per reconstruction on 2 cores.
+Prints the split between sampling (Transformer steps) and decoding + marching cubes, and the CPU
+seconds, which stay meaningful on a shared machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO / "src"), str(REPO)]
+
+import lightning as L  # noqa: E402
+import torch  # noqa: E402
+import yaml  # noqa: E402
+
+from radar2shape.models.radar_diffusion import RadarDiffusion  # noqa: E402
+from radar2shape.models.sdf_vae import SDFVAE  # noqa: E402
+
+
+def init_args(name: str) -> dict:
+    return yaml.safe_load((REPO / "conf/model" / name).read_text())["init_args"]
+
+
+def cpu_config_model(folder: Path) -> RadarDiffusion:
+    """The CPU-config Stage 1 (fitted to a sphere of radius 0.3 for 100 steps) and Stage 2."""
+    torch.manual_seed(0)
+    stage1 = SDFVAE(**init_args("sdf_vae_cpu.yaml"))
+    optimizer = torch.optim.Adam(stage1.parameters(), lr=3e-3)
+    surface = torch.randn(1, 1024, 3)
+    queries = torch.rand(1, 2048, 3) * 1.1 - 0.55
+    batch = {"surface_points": 0.3 * surface / surface.norm(dim=-1, keepdim=True), "sdf_points": queries,
+             "sdf_values": queries.norm(dim=-1) - 0.3}
+    for _ in range(100):
+        optimizer.zero_grad()
+        stage1.losses(batch)["loss"].backward()
+        optimizer.step()
+    path = folder / "stage1.ckpt"
+    torch.save({"state_dict": stage1.state_dict(), "hyper_parameters": dict(stage1.hparams),
+                "pytorch-lightning_version": L.__version__}, path)
+    model = RadarDiffusion(**{**init_args("radar_diffusion_cpu.yaml"), "stage1_ckpt": str(path)})
+    model.standardiser.fit(stage1.eval().encode(batch["surface_points"])[0])
+    return model
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ckpt", help="a RadarDiffusion checkpoint (default: the CPU configs, untrained Stage 2)")
+    parser.add_argument("--steps", type=int, default=50, help="DDIM steps (default 50)")
+    parser.add_argument("--resolution", type=int, default=64, help="marching-cubes grid (default 64)")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
+    args = parser.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    with tempfile.TemporaryDirectory() as folder:
+        if args.ckpt:
+            model = RadarDiffusion.load_from_checkpoint(args.ckpt, map_location="cpu", weights_only=True)
+        else:
+            model = cpu_config_model(Path(folder))
+    model.eval()
+    a, r = 16, 16
+    batch = {"radar": torch.randn(1, a, r, model.hparams.n_freq), "radar_mask": torch.ones(1, a, r, dtype=torch.bool)}
+    model.reconstruct_with_uncertainty(batch, samples=1, steps=args.steps, resolution=16)  # warm-up
+    sample_s, total_s, cpu_s, faces = [], [], [], 0
+    for _ in range(args.repeats):
+        start, cpu_start = time.perf_counter(), time.process_time()
+        latents = model.sample_latents(batch, samples=1, steps=args.steps)
+        sampled = time.perf_counter()
+        mesh, _ = model.mean_mesh(latents[0], args.resolution)
+        total_s.append(time.perf_counter() - start)
+        sample_s.append(sampled - start)
+        cpu_s.append(time.process_time() - cpu_start)
+        faces = len(mesh.faces)
+    best = min(range(args.repeats), key=total_s.__getitem__)
+    verdict = "meets" if total_s[best] < 2.0 else "misses"
+    print(f"reconstruct (DDIM {args.steps} steps, {args.resolution}^3 grid, {torch.get_num_threads()} threads): "
+          f"{total_s[best]:.2f} s per reconstruction (best of {args.repeats}; sampling {sample_s[best]:.2f} s, "
+          f"decode + marching cubes {total_s[best] - sample_s[best]:.2f} s; {cpu_s[best]:.2f} CPU s; "
+          f"{faces} faces) -- {verdict} the 2 s target")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,351 @@
+"""Stage 2 of Radar2Shape: radar-conditional coarse-to-fine diffusion over Stage-1 latents.
+
+Token sequence (L = number of Stage-1 levels = number of frequency blocks)::
+
+    r_0, h_0, r_1, h_1, ..., r_{L-1}, h_{L-1}      with a lower-triangular attention mask
+
+so ``h_l`` sees radar blocks ``r_{<=l}`` and coarser shape tokens ``h_{<l}`` (and itself), never
+finer ones: the coarse latent is explained by the low-frequency band first. All ``h`` tokens are
+noised at one timestep; the loss is the MSE of the predicted noise on the ``h`` tokens.
+
+Latents are the frozen Stage-1 posterior means, standardised per level with statistics taken
+from the training set at fit start (buffers, so they travel in the checkpoint). The Stage-1
+weights and hyperparameters are copied into this module's checkpoint: a Stage-2 checkpoint alone
+reconstructs meshes. See docs/radar_diffusion.md.
+"""
+
+from __future__ import annotations
+
+import contextvars
+from pathlib import Path
+
+import numpy as np
+import torch
+import trimesh
+from torch import nn
+from torch.nn import functional as F
+
+from radar2shape.errors import UserInputError
+from radar2shape.models.base import Reconstruction, ReconstructionModel
+from radar2shape.models.sdf_vae import SDFVAE
+from radar2shape.nn.diffusion import GaussianDiffusion
+from radar2shape.nn.positional import TimestepEmbedding, sinusoidal_embedding
+from radar2shape.nn.radar_encoder import RadarBlockEncoder
+from radar2shape.nn.transformer import Transformer, causal_mask
+
+
+def load_stage1(path: str | Path) -> SDFVAE:
+    """A Stage-1 :class:`SDFVAE` from a Lightning checkpoint (``weights_only`` load)."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserInputError(f"stage1_ckpt: {path} not found (train Stage 1 first: conf/experiment/sdf_vae_*.yaml)")
+    try:
+        return SDFVAE.load_from_checkpoint(path, map_location="cpu", weights_only=True)
+    except (KeyError, TypeError, ValueError, RuntimeError) as err:
+        message = f"stage1_ckpt: {path} is not a checkpoint of SDFVAE ({type(err).__name__}: {err})"
+        raise UserInputError(message) from err
+
+
+def load_latent_cache(path: str | Path) -> dict[int, torch.Tensor]:
+    """``{record index: posterior mean [L, Z]}`` from a ``.pt``/``.npz`` with ``mu [N, L, Z]``, ``index [N]``."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserInputError(f"latent_cache: {path} not found")
+    data = dict(np.load(path)) if path.suffix == ".npz" else torch.load(path, map_location="cpu", weights_only=True)
+    if "mu" not in data or "index" not in data:
+        raise UserInputError(f"latent_cache: {path} must hold 'mu' [N, L, Z] and 'index' [N], got {sorted(data)}")
+    mu, index = torch.as_tensor(np.asarray(data["mu"]), dtype=torch.float32), np.asarray(data["index"]).astype(int)
+    return {int(i): m for i, m in zip(index, mu)}
+
+
+class LatentStandardiser(nn.Module):
+    """Per-level standardisation ``(h - mean_l) / std_l``: a mean per dimension, one std per level.
+
+    One std per level (not per dimension) keeps the relative scale of a level's dimensions, which
+    the decoder relies on, while putting every level's noise-to-signal ratio on the same footing.
+    """
+
+    def __init__(self, n_levels: int, latent_dim: int) -> None:
+        super().__init__()
+        self.register_buffer("mean", torch.zeros(n_levels, latent_dim))
+        self.register_buffer("std", torch.ones(n_levels, 1))
+        self.register_buffer("ready", torch.tensor(False))
+
+    @torch.no_grad()
+    def fit(self, latents: torch.Tensor, min_std: float = 1e-4) -> None:
+        """Set the statistics from training latents ``[N, L, Z]``."""
+        self.mean.copy_(latents.mean(0))
+        self.std.copy_((latents - self.mean).flatten(2).std(dim=(0, 2)).clamp(min=min_std)[:, None])
+        self.ready.fill_(True)
+
+    def forward(self, h: torch.Tensor) -> torch.Tensor:
+        return (h - self.mean) / self.std
+
+    def inverse(self, x: torch.Tensor) -> torch.Tensor:
+        return x * self.std + self.mean
+
+
+def radar_metadata(datamodule) -> dict:
+    """Radar grid and dB normalisation of a radar DataModule, as primitive lists and numbers.
+
+    Read from ``datamodule.manifest["radar"]`` (the axes) and ``datamodule.transform("train")``
+    (dB mean/std/floor), the pieces :class:`data_modules.ShapeDataModule` exposes.
+    """
+    try:
+        grid = datamodule.manifest["radar"]
+        transform = datamodule.transform("train")
+    except (AttributeError, KeyError, TypeError) as err:
+        raise UserInputError(
+            f"{type(datamodule).__name__} does not expose a radar grid (manifest['radar']) and dB statistics "
+            "(transform('train')); RadarDiffusion needs a radar DataModule such as data_modules.ShapeDataModule"
+        ) from err
+    meta = {key: np.asarray(grid[key], dtype=float).tolist() for key in ("aspect_rad", "roll_rad", "freq_hz")}
+    meta.update(db_mean=float(transform.mean), db_std=float(transform.std), floor_db=float(transform.floor_db))
+    return meta
+
+
+class RadarDiffusion(ReconstructionModel):
+    """Radar -> Stage-1 latents by causal Transformer diffusion; meshes through the frozen Stage-1 decoder.
+
+    Args (primitive, so checkpoints load with ``torch.load(weights_only=True)``):
+        stage1_ckpt: Stage-1 SDFVAE checkpoint (read once; its weights are copied into this model).
+        stage1_hparams: filled in from ``stage1_ckpt``; lets a Stage-2 checkpoint rebuild Stage 1 alone.
+        latent_cache: optional ``.pt``/``.npz`` of training latents (``mu``, ``index``), instead of
+            encoding ``surface_points`` with Stage 1 at fit start.
+        n_freq: number of radar frequencies F, cut into L contiguous blocks (equal when L divides F).
+        dim, n_layers, n_heads, mlp_ratio, dropout: Transformer width D, depth, heads, MLP ratio.
+        encoder_depth, encoder_width: ResNet depth (18/34/50/101/152) and width multiplier.
+        num_steps, schedule: diffusion steps T and noise schedule (``cosine`` or ``linear``).
+        eps_skip: predict the noise as ``sqrt(1 - abar) h_t + sqrt(abar) net`` (see
+            :meth:`GaussianDiffusion.skip_eps`; without it, samples from the cosine schedule explode).
+        clip_x0: clamp of the predicted (standardised) latent while sampling; 0 = off.
+        samples, sample_steps, sample_eta, sampler: defaults of :meth:`reconstruct` (K samples,
+            ``ddim`` with that many steps and eta, or ``ddpm``).
+        mesh_resolution: marching-cubes grid of :meth:`reconstruct`; seed: sampling seed.
+        lr, weight_decay: AdamW settings.
+        radar_meta: radar grid (``aspect_rad``, ``roll_rad``, ``freq_hz``) and dB normalisation of
+            the training data, copied from the DataModule at fit start (``radar2shape reconstruct`` reads it).
+    """
+
+    def __init__(
+        self,
+        stage1_ckpt: str | None = None,
+        stage1_hparams: dict | None = None,
+        latent_cache: str | None = None,
+        n_freq: int = 64,
+        dim: int = 512,
+        n_layers: int = 8,
+        n_heads: int = 8,
+        mlp_ratio: float = 4.0,
+        dropout: float = 0.0,
+        encoder_depth: int = 152,
+        encoder_width: float = 1.0,
+        num_steps: int = 1000,
+        schedule: str = "cosine",
+        eps_skip: bool = True,
+        clip_x0: float = 0.0,
+        samples: int = 1,
+        sample_steps: int = 50,
+        sample_eta: float = 0.0,
+        sampler: str = "ddim",
+        mesh_resolution: int = 128,
+        seed: int = 0,
+        lr: float = 1e-4,
+        weight_decay: float = 0.0,
+        radar_meta: dict | None = None,
+    ) -> None:
+        super().__init__()
+        # A fresh contextvars.Context: the Lightning CLI hands its hyperparameters (a ContextVar) to
+        # every LightningModule built while it instantiates the model, which would give Stage 1
+        # this model's hyperparameters instead of its own.
+        if stage1_hparams is None:
+            if stage1_ckpt is None:
+                raise UserInputError("RadarDiffusion needs stage1_ckpt (a trained Stage-1 SDFVAE checkpoint)")
+            stage1 = contextvars.Context().run(load_stage1, stage1_ckpt)
+            stage1_hparams = dict(stage1.hparams)
+        else:  # weights arrive with this model's state dict
+            stage1 = contextvars.Context().run(SDFVAE, **stage1_hparams)
+        self.save_hyperparameters()
+        self.hparams.stage1_hparams = dict(stage1_hparams)
+        self.stage1 = stage1.eval().requires_grad_(False)
+        self.n_levels, self.latent_dim = stage1.n_levels, int(stage1.hparams.latent_dim)
+
+        self.standardiser = LatentStandardiser(self.n_levels, self.latent_dim)
+        self.radar_encoder = RadarBlockEncoder(n_freq, self.n_levels, dim, encoder_depth, encoder_width)
+        self.latent_in = nn.Linear(self.latent_dim, dim)
+        self.token_type = nn.Parameter(torch.zeros(2, dim))  # 0: radar token, 1: shape token
+        self.time_embed = TimestepEmbedding(dim)
+        self.transformer = Transformer(dim, n_layers, n_heads, mlp_ratio, dropout, cond_dim=dim)
+        self.latent_out = nn.Linear(dim, self.latent_dim)
+        nn.init.zeros_(self.latent_out.weight)
+        nn.init.zeros_(self.latent_out.bias)
+        self.diffusion = GaussianDiffusion(num_steps, schedule, clip_x0 or None)
+        self.register_buffer("attn_mask", causal_mask(2 * self.n_levels), persistent=False)
+        self._train_latents: dict[int, torch.Tensor] = {}
+
+    def train(self, mode: bool = True):
+        """Stage 1 stays in eval mode: it is frozen."""
+        super().train(mode)
+        self.stage1.eval()
+        return self
+
+    # ---- the denoiser ------------------------------------------------------------------------
+    def encode_radar(self, radar: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """Radar ``[B, A, R, F]`` + mask ``[B, A, R]`` -> radar tokens ``[B, L, D]`` (once per sampling run)."""
+        if radar.dim() != 4 or radar.shape[-1] != self.hparams.n_freq:
+            raise UserInputError(f"radar must be [B, A, R, F={self.hparams.n_freq}], got {tuple(radar.shape)}")
+        return self.radar_encoder(radar, mask) + self.token_type[0]
+
+    def denoise_tokens(self, radar_tokens: torch.Tensor, h_t: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+        """Predicted noise ``[B, L, Z]`` of standardised noisy latents ``h_t`` at timesteps ``t [B]``."""
+        levels = sinusoidal_embedding(torch.arange(self.n_levels, device=h_t.device), self.hparams.dim)
+        shape_tokens = self.latent_in(h_t) + levels + self.token_type[1]
+        tokens = torch.stack([radar_tokens, shape_tokens], dim=2).flatten(1, 2)  # r_0, h_0, r_1, h_1, ...
+        out = self.latent_out(self.transformer(tokens, self.time_embed(t), self.attn_mask)[:, 1::2])
+        return self.diffusion.skip_eps(h_t, t, out) if self.hparams.eps_skip else out
+
+    def forward(self, radar: torch.Tensor, mask: torch.Tensor, h_t: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+        """Predicted noise ``[B, L, Z]`` from the radar ``[B, A, R, F]``, its mask and noisy latents at ``t``."""
+        return self.denoise_tokens(self.encode_radar(radar, mask), h_t, t)
+
+    # ---- latents -----------------------------------------------------------------------------
+    @torch.no_grad()
+    def encode_shapes(self, batch: dict) -> torch.Tensor:
+        """Stage-1 posterior means ``[B, L, Z]``: from the training cache when every index is in it."""
+        index = batch.get("index")
+        if self.training and index is not None and self._train_latents:
+            rows = [self._train_latents.get(int(i)) for i in index]
+            if all(r is not None for r in rows):
+                return torch.stack(rows).to(self.device)
+        return self.stage1.encode(batch["surface_points"])[0]
+
+    @torch.no_grad()
+    def collect_train_latents(self, loader) -> dict[int, torch.Tensor]:
+        """Posterior means of every training shape, keyed by record index (one pass over ``loader``)."""
+        latents = {}
+        for batch in loader:
+            mu, _ = self.stage1.encode(batch["surface_points"].to(self.device))
+            for i, m in zip(batch["index"].tolist(), mu.cpu()):
+                latents[int(i)] = m
+        return latents
+
+    def on_fit_start(self) -> None:
+        """Copy the radar metadata from the DataModule; collect training latents and their statistics."""
+        datamodule = self.trainer.datamodule
+        if datamodule is not None:
+            self.hparams.radar_meta = radar_metadata(datamodule)
+            n_freq = len(self.hparams.radar_meta.get("freq_hz", []))
+            if n_freq and n_freq != self.hparams.n_freq:
+                raise UserInputError(
+                    f"model n_freq={self.hparams.n_freq} but the DataModule's radar has {n_freq} frequencies"
+                )
+        if self.hparams.latent_cache:
+            self._train_latents = load_latent_cache(self.hparams.latent_cache)
+        elif datamodule is not None:
+            self._train_latents = self.collect_train_latents(datamodule.train_dataloader())
+        if not bool(self.standardiser.ready):
+            if not self._train_latents:
+                raise UserInputError("no training latents to standardise: give a DataModule or latent_cache")
+            self.standardiser.fit(torch.stack(list(self._train_latents.values())).to(self.device))
+
+    # ---- training ----------------------------------------------------------------------------
+    def diffusion_loss(self, batch: dict, generator: torch.Generator | None = None) -> torch.Tensor:
+        """MSE between the true and predicted noise of all shape tokens at one random timestep per shape."""
+        x0 = self.standardiser(self.encode_shapes(batch))
+        t = self.diffusion.sample_timesteps(x0.shape[0], x0.device, generator)
+        noise = torch.randn(x0.shape, generator=generator, device=x0.device)
+        eps = self(batch["radar"], batch["radar_mask"], self.diffusion.q_sample(x0, t, noise), t)
+        return F.mse_loss(eps, noise)
+
+    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
+        loss = self.diffusion_loss(batch)
+        self.log("train/loss", loss, prog_bar=True, on_step=True, on_epoch=True, batch_size=batch["radar"].shape[0])
+        return loss
+
+    def validation_step(self, batch: dict, batch_idx: int) -> None:
+        generator = torch.Generator(self.device).manual_seed(batch_idx)  # same noise every epoch
+        loss = self.diffusion_loss(batch, generator)
+        self.log("val/loss", loss, prog_bar=True, batch_size=batch["radar"].shape[0])
+
+    def test_step(self, batch: dict, batch_idx: int) -> None:
+        """Scoring happens in the metric callback through :meth:`reconstruct`."""
+
+    def configure_optimizers(self):
+        params = [p for p in self.parameters() if p.requires_grad]
+        return torch.optim.AdamW(params, lr=self.hparams.lr, weight_decay=self.hparams.weight_decay, foreach=True)
+
+    # ---- sampling and meshes -----------------------------------------------------------------
+    @torch.no_grad()
+    def sample_latents(
+        self,
+        batch: dict,
+        samples: int | None = None,
+        steps: int | None = None,
+        eta: float | None = None,
+        sampler: str | None = None,
+        seed: int | None = None,
+    ) -> torch.Tensor:
+        """``K`` Stage-1 latents per input, ``[B, K, L, Z]`` (de-standardised), by DDIM or DDPM."""
+        hp = self.hparams
+        k = int(samples or hp.samples)
+        radar_tokens = self.encode_radar(batch["radar"].to(self.device), batch["radar_mask"].to(self.device))
+        radar_tokens = radar_tokens.repeat_interleave(k, dim=0)
+        generator = torch.Generator(self.device).manual_seed(hp.seed if seed is None else seed)
+        x = self.diffusion.sample(
+            lambda h_t, t: self.denoise_tokens(radar_tokens, h_t, t),
+            (radar_tokens.shape[0], self.n_levels, self.latent_dim),
+            method=sampler or hp.sampler,
+            steps=steps or hp.sample_steps,
+            eta=hp.sample_eta if eta is None else eta,
+            generator=generator,
+            device=self.device,
+        )
+        return self.standardiser.inverse(x).reshape(-1, k, self.n_levels, self.latent_dim)
+
+    def sdf_function(self, h: torch.Tensor):
+        """``points [N, 3] -> SDF [K, N]`` for latents ``h [K, L, Z]``, planes decoded once."""
+        decoder = self.stage1.decoder
+        planes = decoder.decode_planes(h)
+
+        def sdf(points: torch.Tensor) -> torch.Tensor:
+            q = torch.as_tensor(points, dtype=planes[0].dtype, device=planes[0].device)
+            return decoder.query(planes, q[None].expand(h.shape[0], -1, -1))
+
+        return sdf
+
+    @torch.no_grad()
+    def mean_mesh(self, h: torch.Tensor, resolution: int | None = None) -> tuple[trimesh.Trimesh, np.ndarray]:
+        """Marching cubes of the mean SDF of latents ``h [K, L, Z]``, and the SDF std over K at its vertices."""
+        from radar2shape.geometry.marching_cubes import extract_mesh
+
+        sdf = self.sdf_function(h)
+        bound = float(self.stage1.hparams.bound)
+        mesh = extract_mesh(
+            lambda p: sdf(p).mean(0), int(resolution or self.hparams.mesh_resolution), (-bound, bound),
+            int(self.stage1.hparams.mesh_batch_points), self.device,
+        )
+        if len(mesh.vertices) == 0:
+            return mesh, np.zeros(0, dtype=np.float32)
+        spread = sdf(torch.as_tensor(mesh.vertices, dtype=torch.float32, device=self.device)).std(0, unbiased=False)
+        return mesh, spread.cpu().numpy()
+
+    @torch.no_grad()
+    def reconstruct_with_uncertainty(
+        self, batch: dict, samples: int | None = None, steps: int | None = None, resolution: int | None = None,
+        seed: int | None = None,
+    ) -> list[tuple[Reconstruction, np.ndarray]]:
+        """Per input: the mesh of the mean SDF of K sampled shapes, and the per-vertex SDF std across them.
+
+        The std (unit-cube units) is where the K plausible shapes disagree: a cheap uncertainty map.
+        """
+        latents = self.sample_latents(batch, samples=samples, steps=steps, seed=seed)
+        out = []
+        for h in latents:
+            mesh, spread = self.mean_mesh(h, resolution)
+            out.append((Reconstruction(mesh=mesh), spread))
+        return out
+
+    @torch.no_grad()
+    def reconstruct(self, batch: dict) -> list[Reconstruction]:
+        """Sample ``samples`` latents per input (DDIM by default), decode, marching cubes (mean SDF when K > 1)."""
+        return [recon for recon, _ in self.reconstruct_with_uncertainty(batch)]

@@ -1,0 +1,57 @@
+"""ResNet layouts, per-block independence and the mask channel of the radar encoder."""
+
+import pytest
+import torch
+
+from radar2shape.nn.radar_encoder import (
+    RESNET_LAYOUTS,
+    Bottleneck,
+    RadarBlockEncoder,
+    ResNetEncoder,
+    block_frequency_index,
+)
+
+
+@pytest.mark.parametrize("depth", [18, 34, 50, 101, 152])
+def test_resnet_depths_build_with_expected_block_counts(depth):
+    net = ResNetEncoder(3, 10, depth=depth, width_mult=1 / 16)
+    kind, counts = RESNET_LAYOUTS[depth]
+    blocks = [m for m in net.features if hasattr(m, "branch")]
+    assert len(blocks) == sum(counts)
+    assert all(isinstance(b, Bottleneck) == (kind == "bottleneck") for b in blocks)
+    # weight layers: stem + 2 or 3 per block + head = the depth in the name
+    assert 1 + len(blocks) * (2 if kind == "basic" else 3) + 1 == depth
+
+
+def test_resnet_output_shape_and_small_images():
+    net = ResNetEncoder(5, 12, depth=18, width_mult=0.125)
+    assert net(torch.randn(2, 5, 9, 16)).shape == (2, 12)
+    assert net(torch.randn(1, 5, 3, 3)).shape == (1, 12)  # 3 x 3 shrinks to 1 x 1
+    with pytest.raises(ValueError, match="depth"):
+        ResNetEncoder(3, 4, depth=20)
+
+
+def test_blocks_are_encoded_independently_and_see_the_mask():
+    torch.manual_seed(0)
+    enc = RadarBlockEncoder(n_freq=12, n_blocks=3, dim=16, depth=18, width_mult=0.125).eval()
+    for p in enc.parameters():  # undo the zero-init of residual branches so every layer matters
+        p.data += 0.05 * torch.randn_like(p)
+    radar, mask = torch.randn(2, 6, 8, 12), torch.ones(2, 6, 8, dtype=torch.bool)
+    base = enc(radar, mask)
+    assert base.shape == (2, 3, 16)
+    changed = radar.clone()
+    changed[..., 4:8] += 1.0  # frequency block 1
+    diff = (enc(changed, mask) - base).abs().amax(dim=(0, 2))
+    assert diff[0] == 0 and diff[2] == 0 and diff[1] > 0
+    mask[:, :3] = False
+    assert not torch.allclose(enc(radar, mask), base)
+
+
+def test_uneven_blocks_are_contiguous_and_padded():
+    index = block_frequency_index(10, 4)
+    assert index.tolist() == [[0, 1, 2], [3, 4, 5], [6, 7, 10], [8, 9, 10]]  # 10 = the zero channel
+    assert block_frequency_index(8, 2).tolist() == [[0, 1, 2, 3], [4, 5, 6, 7]]
+    enc = RadarBlockEncoder(n_freq=10, n_blocks=4, dim=8, width_mult=0.125)
+    assert enc(torch.randn(2, 3, 4, 10), torch.ones(2, 3, 4, dtype=torch.bool)).shape == (2, 4, 8)
+    with pytest.raises(ValueError, match="cannot split"):
+        RadarBlockEncoder(n_freq=3, n_blocks=4, dim=8)
