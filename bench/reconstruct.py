@@ -8,7 +8,8 @@ models are built from conf/model/sdf_vae_cpu.yaml and conf/model/radar_diffusion
 Stage 1 fitted to a sphere for 100 steps so marching cubes meets a real surface (the time of
 sampling does not depend on the weights). Target: < 2 s per reconstruction on 2 cores.
 Prints the split between sampling (Transformer steps) and decoding + marching cubes, and the CPU
-seconds, which stay meaningful on a shared machine.
+seconds, which stay meaningful on a shared machine (there, `--threads 1` avoids two threads
+thrashing against other jobs).
 """
 
 from __future__ import annotations
