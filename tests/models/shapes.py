@@ -1,8 +1,10 @@
-"""Analytic test shapes with exact SDFs inside the unit cube, and batches in the contract's keys.
+"""Analytic test shapes inside the unit cube with their SDFs, and batches in the contract's keys.
 
-Ground truth is exact (no mesh, no sampling error in the labels), so a failing overfit test is
-the model's fault. Surface points are drawn uniformly in a thin band round the surface and
-projected onto it along the SDF gradient, which is area-uniform up to the band's curvature term.
+The primitives' SDFs are exact; the two unions (min of exact SDFs) are exact outside and a bound
+inside. Signs, occupancy labels and surface points are exact (no mesh, no sampling error), so a
+failing overfit test is the model's fault. Surface points are drawn uniformly in a thin band
+round the surface and projected onto it along the SDF gradient (area-uniform up to the band's
+curvature term).
 """
 
 from __future__ import annotations

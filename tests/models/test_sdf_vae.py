@@ -200,17 +200,18 @@ def fit_and_score(names: list[str], steps: int, batch_size: int, seed: int = 0) 
 
 
 def test_learns_two_shapes_quickly(one_thread):
-    """Non-slow learning check (about 15-25 s of CPU): loss drops 4x and the shapes come out."""
+    """Non-slow learning check (~15 CPU-s): loss drops 4x, IoU >= 0.8 (measured 0.94, F@1% 0.73)."""
     start = time.process_time()
     scores, losses = fit_and_score(["sphere", "torus"], steps=150, batch_size=2)
     assert np.mean(losses[-10:]) < 0.25 * np.mean(losses[:5]), losses
-    assert scores["iou"] >= 0.6, scores
+    assert scores["iou"] >= 0.8, scores
     print(f"two shapes, 150 steps: {scores}, cpu {time.process_time() - start:.0f} s")
 
 
 @pytest.mark.slow
 def test_overfits_eight_shapes(one_thread):
-    """Acceptance: 8 analytic shapes, IoU >= 0.85 and F-score@1% >= 0.6 (budget ~3 min of CPU)."""
+    """Acceptance: 8 analytic shapes, IoU >= 0.85 and F-score@1% >= 0.6 (measured 0.949 / 0.828;
+    budget ~3 min: 165 CPU-s)."""
     start = time.process_time()
     scores, _ = fit_and_score(list(SHAPES), steps=500, batch_size=8)
     print(f"eight shapes, 500 steps: {scores}, cpu {time.process_time() - start:.0f} s")

@@ -18,7 +18,7 @@ import trimesh
 from radar2shape.errors import UserInputError
 from radar2shape.models.base import Reconstruction, ReconstructionModel
 from radar2shape.nn.gaussian import gaussian_kl, reparameterize
-from radar2shape.nn.triplane_vae import MultiresTriplaneDecoder, MultiresTriplaneEncoder
+from radar2shape.nn.triplane_vae import MultiresTriplaneDecoder, MultiresTriplaneEncoder, TriplaneVAESizes
 
 
 def truncated_l1(pred: torch.Tensor, target: torch.Tensor, truncation: float | None) -> torch.Tensor:
@@ -121,14 +121,9 @@ class SDFVAE(ReconstructionModel):
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
-        resolutions = [int(r) for r in resolutions]
-        self.encoder = MultiresTriplaneEncoder(
-            resolutions, hash_features, log2_hashmap_size, hash_init_scale, width, n_blocks, plane_channels,
-            unet_channels, unet_max_depth, latent_dim, vae_hidden, bound, init_logvar,
-        )
-        self.decoder = MultiresTriplaneDecoder(
-            resolutions, latent_dim, plane_channels, vae_hidden, mlp_hidden, mlp_layers, bound
-        )
+        sizes = TriplaneVAESizes.from_dict(self.hparams)
+        self.encoder = MultiresTriplaneEncoder(sizes)
+        self.decoder = MultiresTriplaneDecoder(sizes)
 
     @property
     def n_levels(self) -> int:

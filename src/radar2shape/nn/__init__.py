@@ -6,7 +6,7 @@ from radar2shape.nn.mlp import MLP
 from radar2shape.nn.plane_vae import PlaneDecoder, PlanePosterior
 from radar2shape.nn.point_blocks import LocalPoolPointNet, ResnetBlockFC
 from radar2shape.nn.triplane import local_pool, plane_cell_index, project_to_planes, sample_planes, scatter_mean
-from radar2shape.nn.triplane_vae import MultiresTriplaneDecoder, MultiresTriplaneEncoder
+from radar2shape.nn.triplane_vae import MultiresTriplaneDecoder, MultiresTriplaneEncoder, TriplaneVAESizes
 from radar2shape.nn.unet2d import UNet2D, depth_for_resolution
 
 __all__ = [
@@ -18,6 +18,7 @@ __all__ = [
     "PlaneDecoder",
     "PlanePosterior",
     "ResnetBlockFC",
+    "TriplaneVAESizes",
     "UNet2D",
     "depth_for_resolution",
     "gaussian_kl",

@@ -21,7 +21,8 @@ Levels never mix before the decoder's sum, so each h_l is a separate token for S
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
 
 import torch
 from torch import nn
@@ -34,32 +35,48 @@ from radar2shape.nn.triplane import plane_cell_index, project_to_planes, sample_
 from radar2shape.nn.unet2d import UNet2D, depth_for_resolution
 
 
+@dataclass(frozen=True)
+class TriplaneVAESizes:
+    """Every size of the encoder and decoder in one place (see :class:`radar2shape.models.sdf_vae.SDFVAE`)."""
+
+    resolutions: tuple[int, ...]
+    hash_features: int
+    log2_hashmap_size: int
+    hash_init_scale: float
+    width: int
+    n_blocks: int
+    plane_channels: int
+    unet_channels: int
+    unet_max_depth: int
+    latent_dim: int
+    vae_hidden: int
+    mlp_hidden: int
+    mlp_layers: int
+    bound: float
+    init_logvar: float
+
+    @classmethod
+    def from_dict(cls, values: Mapping) -> TriplaneVAESizes:
+        """The sizes among ``values`` (e.g. a module's hparams); other keys are ignored."""
+        sizes = {f.name: values[f.name] for f in fields(cls)}
+        return cls(**{**sizes, "resolutions": tuple(int(r) for r in sizes["resolutions"])})
+
+
 class LevelEncoder(nn.Module):
     """One level: hash features + xyz of the surface points -> posterior (mu, logvar) ``[B, Z]``."""
 
-    def __init__(
-        self,
-        resolution: int,
-        hash_features: int,
-        width: int,
-        n_blocks: int,
-        plane_channels: int,
-        unet_channels: int,
-        unet_max_depth: int,
-        latent_dim: int,
-        vae_hidden: int,
-        bound: float,
-        init_logvar: float,
-    ) -> None:
+    def __init__(self, sizes: TriplaneVAESizes, resolution: int) -> None:
         super().__init__()
         self.resolution = resolution
-        self.bound = bound
-        self.fc_in = nn.Linear(hash_features + 3, width)
-        self.points = LocalPoolPointNet(width, n_blocks, resolution)
-        self.fc_out = nn.Linear(width, plane_channels)
-        depth = depth_for_resolution(resolution, max_depth=unet_max_depth)
-        self.unet = UNet2D(plane_channels, plane_channels, unet_channels, depth)
-        self.posterior = PlanePosterior(plane_channels, resolution, latent_dim, vae_hidden, init_logvar)
+        self.bound = sizes.bound
+        self.fc_in = nn.Linear(sizes.hash_features + 3, sizes.width)
+        self.points = LocalPoolPointNet(sizes.width, sizes.n_blocks, resolution)
+        self.fc_out = nn.Linear(sizes.width, sizes.plane_channels)
+        depth = depth_for_resolution(resolution, max_depth=sizes.unet_max_depth)
+        self.unet = UNet2D(sizes.plane_channels, sizes.plane_channels, sizes.unet_channels, depth)
+        self.posterior = PlanePosterior(
+            sizes.plane_channels, resolution, sizes.latent_dim, sizes.vae_hidden, sizes.init_logvar
+        )
 
     def forward(self, points: torch.Tensor, hash_features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         index = plane_cell_index(points, self.resolution, self.bound)  # [B, 3, N]
@@ -73,31 +90,12 @@ class LevelEncoder(nn.Module):
 class MultiresTriplaneEncoder(nn.Module):
     """Surface points ``[B, N, 3]`` -> posterior mean and log-variance ``[B, L, Z]``."""
 
-    def __init__(
-        self,
-        resolutions: Sequence[int],
-        hash_features: int,
-        log2_hashmap_size: int,
-        hash_init_scale: float,
-        width: int,
-        n_blocks: int,
-        plane_channels: int,
-        unet_channels: int,
-        unet_max_depth: int,
-        latent_dim: int,
-        vae_hidden: int,
-        bound: float,
-        init_logvar: float,
-    ) -> None:
+    def __init__(self, sizes: TriplaneVAESizes) -> None:
         super().__init__()
-        self.hash = HashEncoding(resolutions, hash_features, log2_hashmap_size, bound, hash_init_scale)
-        self.levels = nn.ModuleList(
-            LevelEncoder(
-                r, hash_features, width, n_blocks, plane_channels, unet_channels, unet_max_depth,
-                latent_dim, vae_hidden, bound, init_logvar,
-            )
-            for r in resolutions
+        self.hash = HashEncoding(
+            sizes.resolutions, sizes.hash_features, sizes.log2_hashmap_size, sizes.bound, sizes.hash_init_scale
         )
+        self.levels = nn.ModuleList(LevelEncoder(sizes, r) for r in sizes.resolutions)
 
     def forward(self, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         feats = self.hash(points)  # [B, N, L, F]
@@ -109,20 +107,13 @@ class MultiresTriplaneEncoder(nn.Module):
 class MultiresTriplaneDecoder(nn.Module):
     """Latent ``[B, L, Z]`` -> per-level triplanes -> SDF at query points."""
 
-    def __init__(
-        self,
-        resolutions: Sequence[int],
-        latent_dim: int,
-        plane_channels: int,
-        vae_hidden: int,
-        mlp_hidden: int,
-        mlp_layers: int,
-        bound: float,
-    ) -> None:
+    def __init__(self, sizes: TriplaneVAESizes) -> None:
         super().__init__()
-        self.bound = bound
-        self.levels = nn.ModuleList(PlaneDecoder(latent_dim, r, plane_channels, vae_hidden) for r in resolutions)
-        self.mlp = MLP(plane_channels + 3, mlp_hidden, mlp_layers, 1)
+        self.bound = sizes.bound
+        self.levels = nn.ModuleList(
+            PlaneDecoder(sizes.latent_dim, r, sizes.plane_channels, sizes.vae_hidden) for r in sizes.resolutions
+        )
+        self.mlp = MLP(sizes.plane_channels + 3, sizes.mlp_hidden, sizes.mlp_layers, 1)
 
     def decode_planes(self, h: torch.Tensor) -> list[torch.Tensor]:
         """Per-level triplanes ``[B, 3, C, R_l, R_l]`` from ``h [B, L, Z]`` (decode once, query often)."""
