@@ -42,9 +42,8 @@ class DiffusionSDF(RadarDiffusion):
         self.radar_encoder = RadarBlockEncoder(hp.n_freq, int(radar_blocks), hp.dim, hp.encoder_depth, hp.encoder_width)
         self.attn_mask = None  # every token sees every other one
 
-    def denoise_tokens(self, radar_tokens: torch.Tensor, h_t: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-        """Predicted noise ``[B, 1, Z]`` of the standardised noisy latent ``h_t [B, 1, Z]`` given radar tokens ``[B, J, D]``."""
+    def network_output(self, radar_tokens: torch.Tensor, h_t: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+        """Output ``[B, 1, Z]`` at the shape token of the standardised noisy latent ``h_t [B, 1, Z]`` given radar tokens ``[B, J, D]``."""
         shape_token = self.latent_in(h_t) + self.token_type[1]
         tokens = torch.cat([radar_tokens, shape_token], dim=1)
-        out = self.latent_out(self.transformer(tokens, self.time_embed(t))[:, -1:])
-        return self.diffusion.skip_eps(h_t, t, out) if self.hparams.eps_skip else out
+        return self.latent_out(self.transformer(tokens, self.time_embed(t))[:, -1:])

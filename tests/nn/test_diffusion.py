@@ -105,3 +105,21 @@ def test_clip_x0_bounds_the_prediction():
     diffusion = GaussianDiffusion(num_steps=10, clip_x0=1.0)
     x0 = diffusion.predict_x0(torch.full((2, 2), 5.0), 9, torch.zeros(2, 2))
     assert x0.abs().max() <= 1.0
+
+
+def test_velocity_target_is_what_the_skip_turns_into_the_noise():
+    """skip_eps(x_t, t, v) = noise and sqrt(abar) x_t - sqrt(1-abar) v = x0 (Salimans & Ho 2022);
+    the v-MSE is the noise MSE divided by abar_t (float64: at t = T-1 float32 loses that ratio,
+    which is why the model computes the v-loss directly)."""
+    diffusion = GaussianDiffusion(100, "cosine")
+    gen = torch.Generator().manual_seed(0)
+    x0, noise = (torch.randn(6, 3, 5, generator=gen, dtype=torch.float64) for _ in range(2))
+    t = torch.tensor([0, 10, 40, 70, 95, 99])
+    x_t = diffusion.q_sample(x0, t, noise)
+    v = diffusion.v_target(x0, t, noise)
+    torch.testing.assert_close(diffusion.skip_eps(x_t, t, v), noise, atol=1e-5, rtol=0)
+    abar = diffusion.alphas_bar[t][:, None, None]
+    torch.testing.assert_close(abar.sqrt() * x_t - (1 - abar).sqrt() * v, x0, atol=1e-5, rtol=0)
+    error = torch.randn(6, 3, 5, generator=gen, dtype=torch.float64)
+    eps_error = diffusion.skip_eps(x_t, t, v + error) - noise
+    torch.testing.assert_close(eps_error.pow(2) / abar, error.pow(2), atol=1e-8, rtol=1e-6)

@@ -1,17 +1,23 @@
-"""``radar2shape reconstruct --ckpt CKPT --radar FILE.npz --out OUT.obj``: a mesh from a radar response.
+"""``radar2shape reconstruct``: a mesh from a radar response, simulated or measured.
 
-FILE.npz is what ``radar2shape simulate`` writes (``response`` complex [A, R, F] and the axes
-``aspect_rad``, ``roll_rad``, ``freq_hz``). The checkpoint (a trained :class:`RadarDiffusion`)
-stores the radar grid and dB statistics of its training data; a response on another grid is
-resampled to it when the file covers it: linear interpolation of the dB image (not of the
-complex field, whose phase turns too fast to interpolate) along each axis, roll wrapping
-around when the file covers the full circle. ``--roll-symmetric`` repeats a single-roll
-(aspect-only) response along roll, as the paper does with measured data.
+``--radar FILE.npz`` reads what ``radar2shape simulate`` writes; ``--measured FILE
+[--format austin|csv|npz]`` reads measured data (``radar.measured``: Austin RCS text, generic
+CSV / NPZ). Both are put on the checkpoint's radar grid by ``radar.measured.resample``: linear
+interpolation of the dB image (not of the complex field, whose phase turns too fast), cells the
+file does not cover masked (the models' mask channel), a partly overlapping frequency band
+accepted down to ``--min-overlap``, optional ``--calibration-db`` and ``--size-m`` scaling.
+``--roll-symmetric`` repeats an aspect-only response along roll for the full 3D model, as the
+paper does with measured data. The checkpoint may be a :class:`RadarDiffusion` (3D) or a
+roll-symmetric profile model (``ProfileUNetDiffusion``, ``InvRT``), which takes the aspect-only
+response directly; its grid and dB statistics come from the checkpoint's ``radar_meta`` or from
+its dataset's manifest (``--dataset``).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import json
 import time
 from pathlib import Path
 
@@ -19,109 +25,142 @@ import numpy as np
 import torch
 
 from radar2shape.errors import UserInputError
-from radar2shape.radar import RadarResponse, load_response, to_db
+from radar2shape.radar.measured import FORMATS, MIN_OVERLAP, GridInput, read_measured, resample
 
-TWO_PI = 2.0 * np.pi
+RADAR_DIFFUSION = "radar2shape.models.radar_diffusion.RadarDiffusion"
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--ckpt", required=True, type=Path, help="RadarDiffusion checkpoint (.ckpt)")
-    parser.add_argument("--radar", required=True, type=Path, help="response .npz as written by 'radar2shape simulate'")
+    parser.add_argument("--ckpt", required=True, type=Path,
+                        help="RadarDiffusion or roll-symmetric profile model checkpoint (.ckpt)")
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--radar", type=Path, help="response .npz as written by 'radar2shape simulate'")
+    source.add_argument("--measured", type=Path, nargs="+", metavar="FILE",
+                        help="measured response file (several Austin .txt files combine, e.g. one per frequency)")
+    parser.add_argument("--format", choices=FORMATS, help="format of --measured (default: from the suffix: "
+                        ".txt austin, .csv csv, .npz npz)")
     parser.add_argument("--out", required=True, type=Path, help="output mesh (.obj, or any suffix trimesh writes)")
-    parser.add_argument("--samples", type=int, help="K sampled shapes; the mesh is their mean SDF (default: model's)")
-    parser.add_argument("--steps", type=int, help="DDIM steps (default: the model's)")
-    parser.add_argument("--resolution", type=int, help="marching-cubes grid size (default: the model's)")
+    parser.add_argument("--roll-symmetric", action="store_true", help="repeat an aspect-only response along roll")
+    parser.add_argument("--calibration-db", type=float, default=0.0, help="added to every dB value (default 0)")
+    parser.add_argument("--size-m", type=float, help="the measured object's longest side in metres: scales "
+                        "frequency and level to the model's object size (default: no scaling)")
+    parser.add_argument("--min-overlap", type=float, default=MIN_OVERLAP,
+                        help=f"least fraction of the model's band the file must cover (default {MIN_OVERLAP})")
+    parser.add_argument("--dataset", type=Path, help="profile models: dataset folder whose manifest gives the "
+                        "radar grid and dB statistics (default: the one the checkpoint was trained on)")
+    parser.add_argument("--save-input", type=Path, help="also write the model-grid input (.npz: db, mask, ...)")
+    parser.add_argument("--samples", type=int, help="K sampled shapes; the mesh is their mean (default: model's)")
+    parser.add_argument("--steps", type=int, help="DDIM steps, RadarDiffusion only (default: the model's)")
+    parser.add_argument("--resolution", type=int, help="marching-cubes grid size, RadarDiffusion only")
     parser.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
     parser.add_argument("--png", type=Path, help="also write a PNG: input dB image and the reconstruction")
     parser.add_argument("--spread", type=Path, help="also write the per-vertex SDF std over the K samples (.npy)")
-    parser.add_argument("--roll-symmetric", action="store_true", help="repeat a single-roll response along roll")
+
+
+def _model_class(path: Path, hparams: dict):
+    """The checkpoint's LightningModule class: its ``_class_path`` (LightningCLI), else RadarDiffusion."""
+    from radar2shape.models.profile_diffusion import ProfileModel
+    from radar2shape.models.radar_diffusion import RadarDiffusion
+
+    class_path = hparams.get("_class_path", RADAR_DIFFUSION)
+    module, _, name = class_path.rpartition(".")
+    try:
+        cls = getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError) as err:
+        raise UserInputError(f"--ckpt: {path} names model class {class_path!r}, which cannot be imported ({err})") from err
+    if not (isinstance(cls, type) and issubclass(cls, (RadarDiffusion, ProfileModel))):
+        raise UserInputError(f"--ckpt: {path} holds a {class_path}; expected a RadarDiffusion or a profile model")
+    return cls
 
 
 def load_model(path: Path):
-    """The :class:`RadarDiffusion` in ``path`` on the CPU, in eval mode, with its radar metadata."""
-    from radar2shape.models.radar_diffusion import RadarDiffusion
+    """The checkpoint's model on the CPU in eval mode, and what else the checkpoint stores.
 
+    The second value holds the checkpoint's DataModule hyperparameters (``root``, ``floor_db``) and,
+    under ``radar_meta``, the radar metadata saved with the model's hyperparameters (a profile
+    model's ``__init__`` does not take it, so it is read from the file rather than the model).
+    """
     if not path.is_file():
         raise UserInputError(f"--ckpt: {path} not found")
     try:
-        model = RadarDiffusion.load_from_checkpoint(path, map_location="cpu", weights_only=True)
-    except (KeyError, TypeError, ValueError, RuntimeError) as err:
-        message = f"--ckpt: {path} is not a RadarDiffusion checkpoint ({type(err).__name__}: {err})"
-        raise UserInputError(message) from err
-    if not model.hparams.get("radar_meta"):
-        raise UserInputError(f"--ckpt: {path} stores no radar grid (the model was not fitted on a radar DataModule)")
-    return model.eval()
+        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+        hparams = dict(checkpoint.get("hyper_parameters") or {})
+        cls = _model_class(path, hparams)
+        model = cls.load_from_checkpoint(path, map_location="cpu", weights_only=True)
+    except UserInputError:
+        raise
+    except (KeyError, TypeError, ValueError, RuntimeError, AttributeError, EOFError) as err:
+        raise UserInputError(f"--ckpt: {path} is not a reconstruction model checkpoint ({type(err).__name__}: {err})") from err
+    extra = dict(checkpoint.get("datamodule_hyper_parameters") or {})
+    extra["radar_meta"] = hparams.get("radar_meta")
+    return model.eval(), extra
 
 
-def _axis_range(values: np.ndarray, unit: float, name: str) -> str:
-    return f"{name} [{values.min() / unit:.6g}, {values.max() / unit:.6g}]"
+def _manifest_meta(root: Path, floor_db: float) -> dict:
+    """Radar grid and train dB statistics of a built dataset (its manifest, or the DataModule's stats cache)."""
+    try:
+        manifest = json.loads((root / "manifest.json").read_text())
+        stats = manifest.get("radar_stats") or {}
+        if stats.get("floor_db") != floor_db:
+            stats = json.loads((root / f"radar_stats_floor{floor_db:g}.json").read_text())
+        radar = manifest["radar"]
+        return {"aspect_rad": radar["aspect_rad"], "roll_rad": radar["roll_rad"], "freq_hz": radar["freq_hz"],
+                "size_m": radar.get("size_m", 1.0), "db_mean": stats["mean"], "db_std": stats["std"], "floor_db": floor_db}
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise UserInputError(f"--dataset: {root} gives no radar grid and dB statistics (floor {floor_db:g} dB): {err}") from err
 
 
-def resample_axis(values: np.ndarray, source: np.ndarray, target: np.ndarray, axis: int, name: str,
-                  unit: float, unit_name: str, periodic: bool = False) -> np.ndarray:
-    """Linear interpolation of ``values`` along ``axis`` from ``source`` to ``target`` coordinates.
-
-    ``periodic`` (roll): coordinates are angles and the source covers the full circle, so the
-    target may fall anywhere on it. Otherwise every target value must lie within the source range.
-    """
-    source, target = np.asarray(source, float), np.asarray(target, float)
-    tol = 1e-6 * max(float(np.ptp(source)), float(np.abs(source).max()), 1e-9)
-    if len(source) == len(target) and np.allclose(source, target, rtol=0, atol=tol):
-        return values
-    if periodic:  # one period of padding on both sides; 0 and 2 pi count as one sample
-        source, first = np.unique(np.mod(source, TWO_PI), return_index=True)
-        values = np.take(values, first, axis=axis)
-        source = np.concatenate([source[-1:] - TWO_PI, source, source[:1] + TWO_PI])
-        values = np.concatenate([np.take(values, [-1], axis), values, np.take(values, [0], axis)], axis=axis)
-        target = np.mod(target, TWO_PI)
-    else:
-        order = np.argsort(source)
-        source, values = source[order], np.take(values, order, axis=axis)
-        if np.any(np.diff(source) <= tol):
-            raise UserInputError(f"--radar: the {name} axis repeats a value; expected distinct samples")
-        if target.min() < source[0] - tol or target.max() > source[-1] + tol:
-            raise UserInputError(
-                f"--radar: {_axis_range(source, unit, name)} {unit_name} does not cover the model's "
-                f"{_axis_range(target, unit, name)} {unit_name}"
-            )
-    if len(source) == 1:
-        return np.repeat(values, len(target), axis=axis)
-    moved = np.moveaxis(values, axis, -1)
-    position = np.clip(np.searchsorted(source, target, side="right") - 1, 0, len(source) - 2)
-    weight = np.clip((target - source[position]) / (source[position + 1] - source[position]), 0.0, 1.0)
-    out = moved[..., position] * (1 - weight) + moved[..., position + 1] * weight
-    return np.moveaxis(out, -1, axis)
+def radar_meta(model, datamodule_hparams: dict, dataset: Path | None, ckpt: Path) -> dict:
+    """The model's radar grid and dB normalisation (``aspect_rad, roll_rad, freq_hz, db_mean, db_std, floor_db``)."""
+    meta = model.hparams.get("radar_meta") or datamodule_hparams.get("radar_meta")
+    if meta and dataset is None:
+        return dict(meta)
+    if not is_profile_model(model):
+        raise UserInputError(f"--ckpt: {ckpt} stores no radar grid (the model was not fitted on a radar DataModule)")
+    root = dataset or datamodule_hparams.get("root")
+    if root is None:
+        raise UserInputError(f"--ckpt: {ckpt} stores no radar grid nor dataset; give --dataset DIR (the training data)")
+    return _manifest_meta(Path(root), float(datamodule_hparams.get("floor_db", -100.0)))
 
 
-def full_circle(roll: np.ndarray) -> bool:
-    """True when the roll samples go round the circle: no gap (the seam included) above 1.5x the median gap."""
-    angles = np.unique(np.mod(np.asarray(roll, float), TWO_PI))
-    if len(angles) < 3:
-        return False
-    gaps = np.diff(np.append(angles, angles[0] + TWO_PI))
-    return bool(gaps.max() <= 1.5 * np.median(gaps))
+def is_profile_model(model) -> bool:
+    from radar2shape.models.profile_diffusion import ProfileModel
+
+    return isinstance(model, ProfileModel)
 
 
-def radar_on_model_grid(response: RadarResponse, meta: dict, roll_symmetric: bool = False) -> np.ndarray:
-    """The response's dB image ``[A, R, F]`` on the model's grid (see the module docstring)."""
-    db = to_db(response.response, meta["floor_db"])
-    aspect, roll, freq = (np.asarray(meta[k], float) for k in ("aspect_rad", "roll_rad", "freq_hz"))
-    source_roll = response.roll_rad
-    if roll_symmetric:
-        if db.shape[1] != 1:
-            raise UserInputError(f"--roll-symmetric: expects a single-roll response, got {db.shape[1]} roll angles")
-        db, source_roll = np.repeat(db, len(roll), axis=1), roll
-    elif len(source_roll) == 1 and len(roll) > 1:
-        raise UserInputError(
-            f"--radar: one roll angle but the model needs {len(roll)}; for a roll-symmetric object add --roll-symmetric"
-        )
-    db = resample_axis(db, response.aspect_rad, aspect, 0, "aspect", np.pi / 180, "deg")
-    db = resample_axis(db, source_roll, roll, 1, "roll", np.pi / 180, "deg", periodic=full_circle(source_roll))
-    return resample_axis(db, response.freq_hz, freq, 2, "frequency", 1e9, "GHz")
+def measured_input(paths: list[Path], fmt: str | None, meta: dict, profile: bool, roll_symmetric: bool = False,
+                   calibration_db: float = 0.0, size_m: float | None = None,
+                   min_overlap: float = MIN_OVERLAP) -> GridInput:
+    """A file on the model's grid; profile models see roll 0 of an aspect-only response."""
+    measurement = read_measured(paths, fmt)
+    if profile and not measurement.aspect_only:
+        raise UserInputError(f"{measurement.source}: a profile model needs an aspect-only response (one roll angle), "
+                             f"got {len(measurement.roll_rad)} roll angles")
+    roll = [0.0] if profile else meta["roll_rad"]
+    return resample(measurement, meta["aspect_rad"], roll, meta["freq_hz"], floor_db=meta["floor_db"],
+                    calibration_db=calibration_db, size_m=size_m, model_size_m=meta.get("size_m", 1.0),
+                    min_overlap=min_overlap, roll_symmetric=roll_symmetric or profile)
 
 
-def save_png(path: Path, db: np.ndarray, meta: dict, mesh, title: str) -> None:
-    """Input dB image (mean power over frequency, aspect x roll) beside two views of the mesh."""
+def reconstruct_input(model, grid: GridInput, meta: dict, samples: int | None = None, steps: int | None = None,
+                      resolution: int | None = None, seed: int = 0):
+    """``(Reconstruction, per-vertex SDF spread or None)`` of a model-grid input, 3D or profile model."""
+    radar = torch.from_numpy(grid.normalised(meta["db_mean"], meta["db_std"]))[None]
+    mask = torch.from_numpy(grid.mask)[None]
+    if is_profile_model(model):
+        if samples is not None:
+            model.hparams.num_samples = samples
+        if "sample_seed" in model.hparams:
+            model.hparams.sample_seed = seed
+        return model.reconstruct({"radar": radar[:, :, 0], "radar_mask": mask[:, :, 0]})[0], None
+    (recon, spread), = model.reconstruct_with_uncertainty({"radar": radar, "radar_mask": mask}, samples, steps,
+                                                          resolution, seed)
+    return recon, spread
+
+
+def save_png(path: Path, db: np.ndarray, meta: dict, roll_deg: np.ndarray, mesh, title: str) -> None:
+    """Input dB image (mean power over frequency, aspect x roll; masked cells blank) beside two views of the mesh."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -129,12 +168,16 @@ def save_png(path: Path, db: np.ndarray, meta: dict, mesh, title: str) -> None:
     from radar2shape.metrics.render import VIEWS, depth_image
 
     points = sample_surface(mesh, 20_000, 0)[0] if len(mesh.faces) else np.zeros((0, 3))
-    power_db = 10 * np.log10(np.mean(10 ** (db / 10), axis=-1))
-    roll, aspect = np.degrees(meta["roll_rad"]), np.degrees(meta["aspect_rad"])
+    power = np.where(np.isfinite(db), 10 ** (db / 10), 0.0)
+    count = np.isfinite(db).sum(axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):  # masked cells (no value) stay blank
+        power_db = np.where(count > 0, 10 * np.log10(power.sum(axis=-1) / count), np.nan)
+    aspect = np.degrees(meta["aspect_rad"])
+    roll_extent = (roll_deg[0], roll_deg[-1]) if len(roll_deg) > 1 else (roll_deg[0] - 0.5, roll_deg[0] + 0.5)
     fig = Figure(figsize=(3.4 * (1 + len(VIEWS)), 3.4), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, 1 + len(VIEWS))
-    image = axes[0].imshow(power_db, aspect="auto", cmap="viridis", extent=(roll[0], roll[-1], aspect[-1], aspect[0]))
+    image = axes[0].imshow(power_db, aspect="auto", cmap="viridis", extent=(*roll_extent, aspect[-1], aspect[0]))
     axes[0].set(title="input (mean over frequency)", xlabel="roll (deg)", ylabel="aspect (deg)")
     fig.colorbar(image, ax=axes[0], label="dBsm")
     for ax, (azimuth, elevation) in zip(axes[1:], VIEWS):
@@ -145,35 +188,62 @@ def save_png(path: Path, db: np.ndarray, meta: dict, mesh, title: str) -> None:
     fig.savefig(path, dpi=100)
 
 
-def main(args: argparse.Namespace) -> int:
+def _check_options(args: argparse.Namespace, model, profile: bool) -> None:
     for name in ("samples", "steps", "resolution"):
         value = getattr(args, name)
         if value is not None and value < (2 if name == "resolution" else 1):
             raise UserInputError(f"--{name}: expected a positive integer, got {value}")
-    model = load_model(args.ckpt)
-    meta = model.hparams.radar_meta
-    if args.steps is not None and args.steps > model.hparams.num_steps:
+    if args.format is not None and args.measured is None:
+        raise UserInputError("--format applies to --measured files (--radar is always the simulate .npz)")
+    if not 0.0 < args.min_overlap <= 1.0:
+        raise UserInputError(f"--min-overlap: expected a fraction in (0, 1], got {args.min_overlap}")
+    if profile:
+        unused = [f"--{n}" for n in ("steps", "resolution", "spread") if getattr(args, n) is not None]
+        if args.samples is not None and "num_samples" not in model.hparams:
+            unused.append("--samples")
+        if unused:
+            raise UserInputError(f"{', '.join(unused)}: not used by {type(model).__name__} (a profile model)")
+    elif args.steps is not None and args.steps > model.hparams.num_steps:
         raise UserInputError(f"--steps: at most the model's {model.hparams.num_steps} steps, got {args.steps}")
-    db = radar_on_model_grid(load_response(args.radar), meta, args.roll_symmetric)
-    radar = torch.from_numpy(((db - meta["db_mean"]) / meta["db_std"]).astype(np.float32))[None]
-    batch = {"radar": radar, "radar_mask": torch.ones(radar.shape[:3], dtype=torch.bool)}
+
+
+def main(args: argparse.Namespace) -> int:
+    model, datamodule_hparams = load_model(args.ckpt)
+    profile = is_profile_model(model)
+    _check_options(args, model, profile)
+    meta = radar_meta(model, datamodule_hparams, args.dataset, args.ckpt)
+    paths, fmt = ([args.radar], "npz") if args.radar is not None else (args.measured, args.format)
+    grid = measured_input(paths, fmt, meta, profile, args.roll_symmetric, args.calibration_db, args.size_m,
+                          args.min_overlap)
+    name = paths[0].name
+    print(f"input {name}: {int(grid.mask.sum())} of {grid.mask.size} aspect x roll cells observed, "
+          f"{int(grid.freq_mask.sum())} of {len(grid.freq_mask)} frequencies in band ({100 * grid.overlap:.0f} % overlap)")
+    if args.save_input:
+        args.save_input.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(args.save_input, db=grid.db, mask=grid.mask, freq_mask=grid.freq_mask,
+                 radar=grid.normalised(meta["db_mean"], meta["db_std"]), aspect_rad=meta["aspect_rad"],
+                 roll_rad=[0.0] if profile else meta["roll_rad"], freq_hz=meta["freq_hz"])
+        print(f"wrote {args.save_input}")
 
     start = time.perf_counter()
-    (recon, spread), = model.reconstruct_with_uncertainty(batch, args.samples, args.steps, args.resolution, args.seed)
+    recon, spread = reconstruct_input(model, grid, meta, args.samples, args.steps, args.resolution, args.seed)
     seconds = time.perf_counter() - start
     mesh = recon.mesh
-    if len(mesh.faces) == 0:
-        print(f"error: the reconstruction of {args.radar} is empty (the decoded SDF has no zero crossing)")
+    if mesh is None or len(mesh.faces) == 0:
+        print(f"error: the reconstruction of {name} is empty (no surface)")
         return 1
     args.out.parent.mkdir(parents=True, exist_ok=True)
     mesh.export(args.out)
-    samples = args.samples or model.hparams.samples
-    print(f"wrote {args.out}: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces, {samples} sample(s), "
-          f"{seconds:.2f} s; SDF spread over samples mean {spread.mean():.4f}, max {spread.max():.4f}")
+    detail = f"{len(mesh.vertices)} vertices, {len(mesh.faces)} faces, {seconds:.2f} s"
+    if spread is not None:
+        detail += (f", {args.samples or model.hparams.samples} sample(s); SDF spread over samples mean "
+                   f"{spread.mean():.4f}, max {spread.max():.4f}")
+    print(f"wrote {args.out}: {detail}")
     if args.spread:
         np.save(args.spread, spread)
         print(f"wrote {args.spread}")
     if args.png:
-        save_png(args.png, db, meta, mesh, f"{args.radar.name} -> {args.out.name}")
+        roll_deg = np.degrees([0.0] if profile else meta["roll_rad"])
+        save_png(args.png, grid.db, meta, roll_deg, mesh, f"{name} -> {args.out.name}")
         print(f"wrote {args.png}")
     return 0

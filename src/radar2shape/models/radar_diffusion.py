@@ -118,6 +118,9 @@ class RadarDiffusion(ReconstructionModel):
         num_steps, schedule: diffusion steps T and noise schedule (``cosine`` or ``linear``).
         eps_skip: predict the noise as ``sqrt(1 - abar) h_t + sqrt(abar) net`` (see
             :meth:`GaussianDiffusion.skip_eps`; without it, samples from the cosine schedule explode).
+        loss: ``v`` (MSE on the network's velocity output; needs ``eps_skip``) or ``eps`` (MSE on
+            the predicted noise, which gives the high-noise steps almost no weight: on parts_tiny
+            it left the radar conditioning weak, docs/radar_diffusion.md).
         clip_x0: clamp of the predicted (standardised) latent while sampling; 0 = off.
         samples, sample_steps, sample_eta, sampler: defaults of :meth:`reconstruct` (K samples,
             ``ddim`` with that many steps and eta, or ``ddpm``).
@@ -143,6 +146,7 @@ class RadarDiffusion(ReconstructionModel):
         num_steps: int = 1000,
         schedule: str = "cosine",
         eps_skip: bool = True,
+        loss: str = "v",
         clip_x0: float = 0.0,
         samples: int = 1,
         sample_steps: int = 50,
@@ -155,6 +159,10 @@ class RadarDiffusion(ReconstructionModel):
         radar_meta: dict | None = None,
     ) -> None:
         super().__init__()
+        if loss not in ("v", "eps"):
+            raise UserInputError(f"RadarDiffusion: loss must be 'v' or 'eps', got {loss!r}")
+        if loss == "v" and not eps_skip:
+            raise UserInputError("RadarDiffusion: loss='v' needs eps_skip=true (the network output is the velocity)")
         # A fresh contextvars.Context: the Lightning CLI hands its hyperparameters (a ContextVar) to
         # every LightningModule built while it instantiates the model, which would give Stage 1
         # this model's hyperparameters instead of its own.
@@ -196,12 +204,16 @@ class RadarDiffusion(ReconstructionModel):
             raise UserInputError(f"radar must be [B, A, R, F={self.hparams.n_freq}], got {tuple(radar.shape)}")
         return self.radar_encoder(radar, mask) + self.token_type[0]
 
-    def denoise_tokens(self, radar_tokens: torch.Tensor, h_t: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-        """Predicted noise ``[B, L, Z]`` of standardised noisy latents ``h_t`` at timesteps ``t [B]``."""
+    def network_output(self, radar_tokens: torch.Tensor, h_t: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+        """The Transformer's output ``[B, L, Z]`` at the shape tokens (the velocity when ``eps_skip``)."""
         levels = sinusoidal_embedding(torch.arange(self.n_levels, device=h_t.device), self.hparams.dim)
         shape_tokens = self.latent_in(h_t) + levels + self.token_type[1]
         tokens = torch.stack([radar_tokens, shape_tokens], dim=2).flatten(1, 2)  # r_0, h_0, r_1, h_1, ...
-        out = self.latent_out(self.transformer(tokens, self.time_embed(t), self.attn_mask)[:, 1::2])
+        return self.latent_out(self.transformer(tokens, self.time_embed(t), self.attn_mask)[:, 1::2])
+
+    def denoise_tokens(self, radar_tokens: torch.Tensor, h_t: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+        """Predicted noise ``[B, L, Z]`` of standardised noisy latents ``h_t`` at timesteps ``t [B]``."""
+        out = self.network_output(radar_tokens, h_t, t)
         return self.diffusion.skip_eps(h_t, t, out) if self.hparams.eps_skip else out
 
     def forward(self, radar: torch.Tensor, mask: torch.Tensor, h_t: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
@@ -250,12 +262,15 @@ class RadarDiffusion(ReconstructionModel):
 
     # ---- training ----------------------------------------------------------------------------
     def diffusion_loss(self, batch: dict, generator: torch.Generator | None = None) -> torch.Tensor:
-        """MSE between the true and predicted noise of all shape tokens at one random timestep per shape."""
+        """MSE of the velocity (``loss='v'``) or the noise of all shape tokens at one random timestep per shape."""
         x0 = self.standardiser(self.encode_shapes(batch))
         t = self.diffusion.sample_timesteps(x0.shape[0], x0.device, generator)
         noise = torch.randn(x0.shape, generator=generator, device=x0.device)
-        eps = self(batch["radar"], batch["radar_mask"], self.diffusion.q_sample(x0, t, noise), t)
-        return F.mse_loss(eps, noise)
+        radar_tokens = self.encode_radar(batch["radar"], batch["radar_mask"])
+        h_t = self.diffusion.q_sample(x0, t, noise)
+        if self.hparams.get("loss", "eps") == "v":
+            return F.mse_loss(self.network_output(radar_tokens, h_t, t), self.diffusion.v_target(x0, t, noise))
+        return F.mse_loss(self.denoise_tokens(radar_tokens, h_t, t), noise)
 
     def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
         loss = self.diffusion_loss(batch)

@@ -94,11 +94,21 @@ class GaussianDiffusion(nn.Module):
         At high noise ``eps ~= x_t``; a network that must reproduce ``x_t`` through its layers
         leaves a small error, and ``x_0 = (x_t - sqrt(1 - abar) eps) / sqrt(abar)`` multiplies it by
         up to ``1 / sqrt(abar_{T-1})`` (10^4 for the cosine schedule): samples explode. With the
-        skip, ``x_0 = sqrt(abar) x_t - sqrt(1 - abar) out`` is bounded for every ``t`` (``out`` is
-        ``-v`` of Salimans & Ho 2022), while the loss is still the MSE on the predicted noise.
+        skip, ``x_0 = sqrt(abar) x_t - sqrt(1 - abar) out`` is bounded for every ``t``: ``out`` is
+        the velocity ``v`` of Salimans & Ho 2022 (:meth:`v_target`).
         """
         abar = self._at(self.alphas_bar, t, x_t)
         return (1 - abar).sqrt() * x_t + abar.sqrt() * out
+
+    def v_target(self, x0: torch.Tensor, t: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
+        """Velocity ``v = sqrt(abar_t) noise - sqrt(1 - abar_t) x_0``: what ``out`` of :meth:`skip_eps` should be.
+
+        The MSE on ``v`` equals the noise MSE divided by ``abar_t``: it keeps weight on the
+        high-noise steps, where the noise MSE (weight ``abar_t -> 0``) barely trains the network,
+        yet where sampling from pure noise decides the coarse shape.
+        """
+        abar = self._at(self.alphas_bar, t, x0)
+        return abar.sqrt() * noise - (1 - abar).sqrt() * x0
 
     # ---- reverse updates ---------------------------------------------------------------------
     def predict_x0(self, x_t: torch.Tensor, t: int, eps: torch.Tensor) -> torch.Tensor:

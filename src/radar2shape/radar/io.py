@@ -64,19 +64,24 @@ def save_response(path: str | Path, response, aspect_rad, roll_rad, freq_hz, siz
     return path
 
 
-def load_response(path: str | Path) -> RadarResponse:
-    """Read and check a response file written by ``save_response`` (or by hand)."""
-    path = Path(path)
+def read_npz_fields(path: Path, what: str) -> dict[str, np.ndarray]:
+    """All named arrays of an ``.npz`` (no pickles); one-line errors for a missing or unreadable file."""
     if not path.is_file():
-        raise UserInputError(f"{path}: response file not found")
+        raise UserInputError(f"{path}: {what} not found")
     try:
         data = np.load(path, allow_pickle=False)
         if not isinstance(data, np.lib.npyio.NpzFile):
             raise ValueError(f"holds a single {type(data).__name__}, not named arrays")
         with data:
-            fields = {f: data[f] for f in data.files}
+            return {f: data[f] for f in data.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
-        raise UserInputError(f"{path}: not a readable .npz response file ({err})") from err
+        raise UserInputError(f"{path}: not a readable .npz {what} ({err})") from err
+
+
+def load_response(path: str | Path) -> RadarResponse:
+    """Read and check a response file written by ``save_response`` (or by hand)."""
+    path = Path(path)
+    fields = read_npz_fields(path, "response file")
     missing = [f for f in ("response",) + AXES if f not in fields]
     if missing:
         raise UserInputError(f"{path}: missing field(s) {missing} (expected response, {', '.join(AXES)})")

@@ -1,7 +1,8 @@
 """PO against the Austin RCS Benchmark Suite (shared/validation/austin-rcs): NASA almond and plates.
 
 Each data file holds rows (frequency Hz, theta deg, phi deg, RCS dBsm) for one frequency and
-polarisation. The suite's error measure: with TH = max(ref_dB) - 80,
+polarisation; ``radar.measured.read_austin`` parses them (checked rows, named errors). The
+suite's error measure: with TH = max(ref_dB) - 80,
 avg_err_dB = mean over phi of |max(sim_dB, TH) - max(ref_dB, TH)|.
 Run ``python -m radar2shape.radar.validation [DIR]`` for the table in docs/radar.md.
 """
@@ -16,7 +17,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from radar2shape.errors import UserInputError
 from radar2shape.geometry.almond import ALMOND_LENGTH_M, nasa_almond
+from radar2shape.radar.measured import read_austin
 from radar2shape.radar.signal import to_db
 from radar2shape.radar.simulator import simulate
 
@@ -41,11 +44,12 @@ def default_dir() -> Path:
 
 
 def read_cut(path: Path) -> Cut:
-    data = np.loadtxt(path)
-    freq, theta = np.unique(data[:, 0]), np.unique(data[:, 1])
-    if len(freq) != 1 or len(theta) != 1:
-        raise ValueError(f"{path}: expected one frequency and one theta, got {freq} and {theta}")
-    return Cut(path.name, float(freq[0]), float(np.radians(theta[0])), np.radians(data[:, 2]), data[:, 3])
+    """One Austin file through the measured-data reader (``radar.measured.read_austin``): a phi cut."""
+    m = read_austin(path)
+    if len(m.freq_hz) != 1 or len(m.aspect_rad) != 1:
+        raise UserInputError(f"{path}: expected one frequency and one theta, got {m.freq_hz} Hz and "
+                             f"{np.degrees(m.aspect_rad)} deg")
+    return Cut(Path(path).name, float(m.freq_hz[0]), float(m.aspect_rad[0]), m.roll_rad, m.db[0, :, 0])
 
 
 def avg_err_db(sim_db: np.ndarray, ref_db: np.ndarray) -> float:

@@ -1,4 +1,4 @@
-"""Shape families: procedural ``frusta`` and ``parts``, and ``folder`` for real mesh collections."""
+"""Shape families: procedural ``frusta``, ``monocone`` and ``parts``, and ``folder`` for real mesh collections."""
 
 from __future__ import annotations
 
@@ -6,9 +6,12 @@ from radar2shape.errors import UserInputError
 from radar2shape.geometry.families.base import SPLITS, Family, Shape, ShapeTask, split_counts
 from radar2shape.geometry.families.folder import FolderFamily
 from radar2shape.geometry.families.frusta import FrustaFamily
+from radar2shape.geometry.families.monocone import MonoconeFamily
 from radar2shape.geometry.families.parts import PART_CLASSES, PartsFamily
 
-FAMILIES: dict[str, type[Family]] = {"frusta": FrustaFamily, "parts": PartsFamily, "folder": FolderFamily}
+FAMILIES: dict[str, type[Family]] = {
+    "frusta": FrustaFamily, "monocone": MonoconeFamily, "parts": PartsFamily, "folder": FolderFamily,
+}
 
 
 def make_family(name: str, options: dict | None = None) -> Family:
