@@ -14,7 +14,7 @@ DATA_DIR ?= data/parts
 WORKERS ?= 2
 
 .DEFAULT_GOAL := help
-.PHONY: help install test test-full demo data fit test-model sweep report bench clean
+.PHONY: help install test test-full demo data fit test-model sweep report monocone bench clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*## "}; {printf "  %-12s %s\n", $$1, $$2}'
@@ -49,8 +49,11 @@ sweep: install ## Run a config grid: make sweep GRID=table1 (conf/grid/GRID.yaml
 	@test -f conf/grid/$(GRID).yaml || { echo "error: conf/grid/$(GRID).yaml not found (grids land with issues #8 and #9; see README Roadmap)"; exit 2; }
 	$(PY) -m radar2shape.sweep conf/grid/$(GRID).yaml
 
-report: install ## Collect finished runs into tables and figures: make report GRID=table1
+report: install ## Collect finished runs into tables and figures: make report GRID=table1 (or rollsym: Table 2 layout)
 	$(VENV)/bin/radar2shape report --grid $(GRID)
+
+monocone: install ## Zero-shot monocone experiment on simulated measurements -> reports/monocone/ (needs runs/rollsym and a Radar2Shape Stage 2)
+	$(PY) scripts/monocone_experiment.py --table1-dir runs/table1
 
 bench: install ## Run the speed benchmarks under bench/
 	@for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

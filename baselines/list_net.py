@@ -25,6 +25,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from baselines.loss_steps import LossDictSteps
 from baselines.point_losses import chamfer_l2, nearest
 from baselines.radar_features import RadarFeatures
 from radar2shape.models.base import Reconstruction, ReconstructionModel
@@ -50,7 +51,7 @@ class ShapeContext:
         return ShapeContext([m[i : i + 1] for m in self.maps], self.z[i : i + 1], self.coarse[i : i + 1], self.cloud[i : i + 1])
 
 
-class LIST(ReconstructionModel):
+class LIST(LossDictSteps, ReconstructionModel):
     """Coarse cloud + spatially transformed local radar features -> SDF; meshes by marching cubes.
 
     Args (primitive, so checkpoints load with ``torch.load(weights_only=True)``):
@@ -138,24 +139,6 @@ class LIST(ReconstructionModel):
         sdf_l1 = truncated_l1(self.sdf(ctx, batch["sdf_points"]), batch["sdf_values"], self.hparams.truncation)
         coarse = chamfer_l2(ctx.coarse, batch["surface_points"]).mean()
         return {"loss": sdf_l1 + self.hparams.w_coarse * coarse, "sdf_l1": sdf_l1, "coarse_chamfer": coarse}
-
-    def _step(self, stage: str, batch: dict) -> torch.Tensor:
-        losses = self.losses(batch)
-        self.log_dict({f"{stage}/{k}": v.detach() for k, v in losses.items()}, on_step=stage == "train",
-                      on_epoch=True, prog_bar=False, batch_size=batch["radar"].shape[0])
-        return losses["loss"]
-
-    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
-        return self._step("train", batch)
-
-    def validation_step(self, batch: dict, batch_idx: int) -> None:
-        self._step("val", batch)
-
-    def test_step(self, batch: dict, batch_idx: int) -> None:
-        """Scoring happens in the metric callback through :meth:`reconstruct`."""
-
-    def configure_optimizers(self):
-        return torch.optim.Adam(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)
 
     # ---- reconstruction ----------------------------------------------------------------------
     @torch.no_grad()

@@ -24,6 +24,7 @@ import math
 import torch
 from torch import nn
 
+from baselines.loss_steps import LossDictSteps
 from baselines.point_losses import chamfer_l2, nearest
 from baselines.radar_features import RadarFeatures
 from baselines.template_mesh import icosphere, sample_faces, to_trimesh, unique_edges
@@ -31,7 +32,7 @@ from radar2shape.models.base import Reconstruction, ReconstructionModel
 from radar2shape.nn.mlp import MLP
 
 
-class TMNet(ReconstructionModel):
+class TMNet(LossDictSteps, ReconstructionModel):
     """Template-sphere deformation with face pruning between two deformation stages.
 
     Args (primitive, so checkpoints load with ``torch.load(weights_only=True)``):
@@ -131,24 +132,6 @@ class TMNet(ReconstructionModel):
             "loss": loss, "chamfer1": chamfer1, "chamfer2": chamfer2, "edge": edge, "normal": normal,
             "error": error, "kept": out["keep"].float().mean(),
         }
-
-    def _step(self, stage: str, batch: dict) -> torch.Tensor:
-        losses = self.losses(batch)
-        self.log_dict({f"{stage}/{k}": v.detach() for k, v in losses.items()}, on_step=stage == "train",
-                      on_epoch=True, prog_bar=False, batch_size=batch["radar"].shape[0])
-        return losses["loss"]
-
-    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
-        return self._step("train", batch)
-
-    def validation_step(self, batch: dict, batch_idx: int) -> None:
-        self._step("val", batch)
-
-    def test_step(self, batch: dict, batch_idx: int) -> None:
-        """Scoring happens in the metric callback through :meth:`reconstruct`."""
-
-    def configure_optimizers(self):
-        return torch.optim.Adam(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)
 
     # ---- reconstruction ----------------------------------------------------------------------
     @torch.no_grad()

@@ -2,6 +2,7 @@
 
 import csv
 import json
+from pathlib import Path
 
 import pytest
 import trimesh
@@ -45,6 +46,7 @@ def grid(tmp_path):
     logged = runs / "nearest-full" / "test" / "version_0"
     logged.mkdir(parents=True)
     (logged / "metrics.csv").write_text("epoch,test/chamfer_l2_x1e3_mean,test/iou_mean\n0,9.0,0.2\n")
+    (runs / "tmnet-full" / "note").write_text("carried over from\nan earlier run\n")
     return path
 
 
@@ -59,16 +61,73 @@ def test_report_writes_table1_layout_csv_and_figure(grid, tmp_path):
     assert "**1.00 ± 0.10**" in rows["Radar2Shape"] and "**0.800 ± 0.050**" in rows["Radar2Shape"]
     assert "5.00 ± 0.10" in rows["TMNet"] and "**5.00" not in rows["TMNet"]
     assert rows["TMNet"].count("n/a") == 3  # partial not run
-    assert "radar2shape_stage1" not in table and "| radar2shape_stage1 | done | 30.0 |" in runs  # auxiliary run
+    assert "radar2shape_stage1" not in table.split("Notes")[0] and "| radar2shape_stage1 | done | fit | 30.0 |" in runs  # auxiliary run
+    assert "- `tmnet-full`: carried over from an earlier run" in table  # a run's note, under the table
     assert "| radar2shape-partial | failed |" in runs and "| tmnet-partial | missing |" in runs
     assert "**54**" in runs  # total wall time: 30 + 12 + 12
     with (out / "table1.csv").open() as handle:
         table = list(csv.DictReader(handle))
-    assert [r["model"] for r in table] == ["Radar2Shape", "TMNet", "Nearest neighbour"]
-    assert "9.00 | 0.200 | n/a |" in rows["Nearest neighbour"] and "| nearest-full | tested |" in runs
+    assert [r["model"] for r in table] == ["Radar2Shape", "TMNet"]  # the grid's rows only
+    main, outside = text.split("Rows tested outside the grid")
+    assert "Nearest neighbour" not in main and "| nearest-full | tested |" in runs
+    assert "| Nearest neighbour | **9.00** | **0.200** | n/a |" in outside.split("## Runs")[0]
     assert float(table[1]["full/iou_mean"]) == 0.3 and table[1]["partial/iou_mean"] == ""
     assert (out / "table1_full.png").stat().st_size > 0
     assert "![table1_full](table1_full.png)" in text
+
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_posbr_runs_are_column_groups_and_test_only_runs_list_their_command(tmp_path):
+    runs = tmp_path / "runs"
+    names = ["radar2shape-full", "radar2shape-full-sbr", "radar2shape_lora-full-sbr"]
+    path = tmp_path / "table1.yaml"
+    path.write_text(yaml.safe_dump({"out_dir": str(runs), "runs": [{"name": n} for n in names]}))
+    for name, iou in zip(names, (0.5, 0.3, 0.4)):
+        finished_run(runs / name, 2.0, iou, 0.1)
+    done = json.loads((runs / "radar2shape-full-sbr" / "done").read_text())
+    done.update(command="test", wall_seconds=2.0)
+    del done["fit_seconds"]
+    (runs / "radar2shape-full-sbr" / "done").write_text(json.dumps(done))
+    out = tmp_path / "report"
+    assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
+    text = (out / "table1.md").read_text()
+    header = next(line for line in text.splitlines() if line.startswith("| model"))
+    assert header.count("| full:") == 3 and header.count("| PO-SBR test, full:") == 3
+    rows = {line.split("|")[1].strip(): line for line in text.split("## Runs")[0].splitlines() if line.startswith("| ")}
+    assert rows["Radar2Shape"].count("n/a") == 0 and "0.300 ± 0.050" in rows["Radar2Shape"]  # zero-shot cell
+    assert rows["Radar2Shape + LoRA (PO-SBR fine-tuned)"].count("n/a") == 3 and "**0.400 ± 0.050**" in rows["Radar2Shape + LoRA (PO-SBR fine-tuned)"]
+    assert "| radar2shape-full-sbr | done | test |  | 2.0 | 2.0 |" in text
+    assert (out / "table1_full-sbr.png").is_file()
+
+
+def test_rollsym_grid_is_handed_to_its_table_script(tmp_path):
+    """``radar2shape report --grid rollsym`` writes the Table 2 layout of scripts/rollsym_table.py."""
+    matrix = {axis: {v: {} for v in values} for axis, values in
+              {"model": ["unet", "invrt"], "obs": ["full", "partial"], "noise": ["low"]}.items()}
+    path = tmp_path / "rollsym.yaml"
+    path.write_text(yaml.safe_dump({"out_dir": str(tmp_path / "runs"), "matrix": matrix,
+                                    "report": str(REPO / "scripts" / "rollsym_table.py")}, sort_keys=False))
+    run_dir = tmp_path / "runs" / "unet-full-low"
+    run_dir.mkdir(parents=True)
+    (run_dir / "metrics.json").write_text(json.dumps({"iou_s_mean": 0.9, "iou_s_std": 0.1}))
+    (run_dir / "done").write_text(json.dumps({"wall_seconds": 120.0}))
+    out = tmp_path / "report"
+    assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
+    text = (out / "table.md").read_text()
+    assert "| Profile U-Net diffusion (ours) | n/a | **0.900 ± 0.100** |" in text
+    assert "1 of 4 runs finished; summed wall time of the runs 2.0 min" in text
+    assert not (out / "rollsym.md").exists()  # not the Table 1 layout
+    assert report.other_report_script(REPO / "conf" / "grid" / "rollsym.yaml") == Path("scripts/rollsym_table.py")
+    assert report.other_report_script(REPO / "conf" / "grid" / "table1.yaml") is None
+
+
+def test_missing_report_script_is_a_one_line_error(tmp_path, capsys):
+    path = tmp_path / "g.yaml"
+    path.write_text(yaml.safe_dump({"out_dir": str(tmp_path / "runs"), "runs": [{"name": "a"}], "report": "nope/table.py"}))
+    assert cli.main(["report", "--grid", str(path)]) == 2
+    assert "report script nope/table.py not found" in capsys.readouterr().err
 
 
 def test_grid_name_resolves_under_conf_grid():
@@ -84,13 +143,14 @@ def test_missing_grid_is_a_one_line_error(tmp_path, capsys):
 
 @pytest.mark.parametrize("name", ["table1", "table1-paper"])
 def test_table1_grids_name_cells_and_train_stage1_first(name):
-    """Every run is a known Table 1 cell or a Stage-1 run, config files exist, and each Stage-2 run
-    loads the last checkpoint of a Stage-1 run that comes before it (runs execute in file order)."""
-    from pathlib import Path
-
+    """Every run is a known Table 1 cell or a Stage-1 run, config files exist, each Stage-2 run
+    loads the last checkpoint of a Stage-1 run that comes before it (runs execute in file order),
+    every row is in the grid (references and PO-SBR rows included, no manual step), and the
+    PO-SBR rows test on an SBR dataset the grid builds, from the PO run of the same observability."""
+    from data_modules.config import load_build_config
     from radar2shape.sweep import load_grid
 
-    repo = Path(__file__).resolve().parents[1]
+    repo = REPO
     grid = load_grid(repo / report.grid_path(name))
     order = [run.name for run in grid.runs]
     for i, run in enumerate(grid.runs):
@@ -104,3 +164,21 @@ def test_table1_grids_name_cells_and_train_stage1_first(name):
             stage1 = f"{model}_stage1"
             assert checkpoint == f"{grid.out_dir}/{stage1}/fit/version_0/checkpoints/last.ckpt"
             assert order.index(stage1) < i
+    built = {command[command.index("--out") + 1]: command[command.index("--config") + 1] for command in grid.prepare}
+    for run in grid.runs:
+        model, group = report.split_name(run.name)
+        root = run.overrides.get("data.init_args.root")
+        assert root is None or root in built, (run.name, root)
+        if group and group.endswith("-sbr"):
+            assert load_build_config(repo / built[root]).simulator["method"] == "sbr", run.name
+            obs = group.removesuffix("-sbr")
+            po_run = run.overrides.get("ckpt_path") or run.overrides.get("model.init_args.base_ckpt")
+            assert po_run == f"{grid.out_dir}/radar2shape-{obs}/fit/version_0/checkpoints/last.ckpt", run.name
+            assert run.command == ("test" if model == "radar2shape" else "fit"), run.name
+            assert run.overrides["data.init_args.observability"] == obs
+    cells = {report.split_name(n) for n in order}
+    for model in ("radar2shape", "diffusion_sdf", "tmnet", "list", "nearest", "mean_shape"):
+        assert {(model, "full"), (model, "partial")} <= cells, model
+    assert {("radar2shape", "full-sbr"), ("radar2shape_lora", "partial-sbr")} <= cells
+    assert {r.name: r.command for r in grid.runs if r.name.startswith(("nearest", "mean_shape"))} == {
+        f"{m}-{o}": "test" for m in ("nearest", "mean_shape") for o in ("full", "partial")}

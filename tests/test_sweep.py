@@ -1,6 +1,7 @@
 """The grid runner: grid parsing, one folder per run, and resuming after a kill (toy sphere config)."""
 
 import json
+import os
 
 import pytest
 import torch
@@ -88,9 +89,12 @@ def test_killed_sweep_resumes_and_skips_finished_runs(tmp_path, monkeypatch):
 
     calls.clear()
     monkeypatch.setattr(cli, "main", lambda args: calls.append(args[0]) or real_main(args))
+    h8_checkpoint = next((runs / "h8" / "fit").rglob("*.ckpt"))
+    h8_checkpoint_mtime = h8_checkpoint.stat().st_mtime_ns
     assert sweep.main([str(grid_path)]) == 0
     assert calls == ["fit", "test"]  # only the unfinished run, from scratch
     assert (runs / "h8" / "done").stat().st_mtime_ns == h8_done
+    assert h8_checkpoint.stat().st_mtime_ns == h8_checkpoint_mtime  # h8 was not refitted
     record = json.loads((runs / "h16" / "done").read_text())
     assert record["name"] == "h16" and record["wall_seconds"] > 0
     assert (runs / "h16" / record["checkpoint"]).is_file()
@@ -101,6 +105,69 @@ def test_killed_sweep_resumes_and_skips_finished_runs(tmp_path, monkeypatch):
     threads = torch.get_num_threads()
     assert sweep.main([str(grid_path)]) == 0 and calls == []
     assert torch.get_num_threads() == threads  # the grid's `threads: 1` applied only while it ran
+
+
+SAVE_LAST = [{"class_path": "lightning.pytorch.callbacks.ModelCheckpoint", "init_args": {"save_last": True}}]
+
+
+def chained_grid(tmp_path):
+    """``a`` fits; ``ref`` only tests a fresh model; ``b`` only tests ``a``'s checkpoint (as a zero-shot row does)."""
+    last = str(tmp_path / "runs" / "a" / "fit" / "version_0" / "checkpoints" / "last.ckpt")
+    runs = [
+        {"name": "a", "overrides": {"trainer.callbacks": SAVE_LAST}},
+        {"name": "ref", "command": "test"},
+        {"name": "b", "command": "test", "overrides": {"ckpt_path": last}},
+    ]
+    return write_grid(tmp_path, configs=[TOY], overrides=TINY, runs=runs, threads=1)
+
+
+def test_test_only_runs_and_dependencies_by_path(tmp_path, monkeypatch):
+    grid_path = chained_grid(tmp_path)
+    grid = sweep.load_grid(grid_path)
+    assert [(r.name, r.command, grid.needs(r)) for r in grid.runs] == [("a", "fit", []), ("ref", "test", []), ("b", "test", ["a"])]
+    real_main = cli.main
+    calls = []
+    monkeypatch.setattr(cli, "main", lambda args: calls.append((args[0], args[-1].split("=")[0])) or real_main(args))
+    assert sweep.main([str(grid_path)]) == 0
+    # a: fit + test on its checkpoint; ref and b: test only, b with its own ckpt_path and no other
+    assert calls == [("fit", "--trainer.default_root_dir"), ("test", "--ckpt_path"),
+                     ("test", "--trainer.default_root_dir"), ("test", "--trainer.default_root_dir")]
+    runs = tmp_path / "runs"
+    for name in ("ref", "b"):
+        record = json.loads((runs / name / "done").read_text())
+        assert record["command"] == "test" and "fit_seconds" not in record and record["wall_seconds"] == record["test_seconds"] > 0
+        assert not (runs / name / "fit").exists() and "radius_l1" in json.loads((runs / name / "metrics.json").read_text())
+    metrics = {n: json.loads((runs / n / "metrics.json").read_text())["radius_l1"] for n in ("a", "ref", "b")}
+    assert metrics["b"] == metrics["a"] != metrics["ref"]  # b scored a's trained weights, not a fresh model
+
+    # a redone dependency makes its dependants stale; independent runs stay done
+    later = (runs / "b" / "done").stat().st_mtime + 1.0  # as if `a` was redone after b finished
+    os.utime(runs / "a" / "done", (later, later))
+    calls.clear()
+    assert sweep.main([str(grid_path)]) == 0
+    assert [c[0] for c in calls] == ["test"]  # b only
+
+    # a run whose arguments changed in the grid is redone (and so are its dependants)
+    spec = yaml.safe_load(grid_path.read_text())
+    spec["runs"][0]["overrides"]["model.init_args.hidden"] = 8
+    grid_path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    calls.clear()
+    assert sweep.main([str(grid_path)]) == 0
+    assert [c[0] for c in calls] == ["fit", "test", "test"]  # a (changed), then b (a finished after it)
+
+
+def test_dependencies_must_come_first_and_be_done(tmp_path, capsys):
+    last = str(tmp_path / "runs" / "a" / "fit" / "version_0" / "checkpoints" / "last.ckpt")
+    with pytest.raises(UserInputError, match="'b' uses a path under .*a, which is not a run listed before it"):
+        sweep.load_grid(write_grid(tmp_path, runs=[{"name": "b", "overrides": {"ckpt_path": last}}, {"name": "a"}]))
+    with pytest.raises(UserInputError, match="command must be one of"):
+        sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a", "command": "predict"}]))
+    with pytest.raises(UserInputError, match="matrix.m.x: expected a mapping"):  # command is per run, not per axis value
+        sweep.load_grid(write_grid(tmp_path, matrix={"m": {"x": {"command": "test"}}}))
+    assert sweep.main([str(chained_grid(tmp_path)), "--only", "b"]) == 1  # a not done: one line, no traceback
+    err = capsys.readouterr().err
+    assert "b: FAILED: needs ['a'], not done" in err and "Traceback" not in err
+    assert not (tmp_path / "runs" / "b").exists()
 
 
 def test_prepare_threads_and_report_keys(tmp_path):

@@ -1,11 +1,19 @@
 """Run a grid of experiments one after another: ``python -m radar2shape.sweep conf/grid/NAME.yaml``.
 
 A grid file lists runs; each run is ``fit`` then (optionally) ``test`` through
-:func:`radar2shape.cli.main`, so a run is exactly what a person would type. Every run owns a folder
-``<out_dir>/<name>/`` holding the command it ran (``run.yaml``), the Lightning logs, config and
-checkpoint (``fit/``, ``test/``), the test metrics (``metrics.json``) and, written last and
-atomically, a ``done`` marker. Rerunning the grid skips runs with a ``done`` marker and restarts
-any other run from scratch, so a killed sweep resumes at the run it was in.
+:func:`radar2shape.cli.main`, so a run is exactly what a person would type; a run with
+``command: test`` only tests (models that train nothing, or a trained checkpoint on other test data
+through a ``ckpt_path`` override). Every run owns a folder ``<out_dir>/<name>/`` holding the
+command it ran (``run.yaml``), the Lightning logs, config and checkpoint (``fit/``, ``test/``), the
+test metrics (``metrics.json``) and, written last and atomically, a ``done`` marker. Rerunning the
+grid skips runs with a ``done`` marker and restarts any other run from scratch, so a killed sweep
+resumes at the run it was in.
+
+Dependencies are paths: an override value under ``<out_dir>/<other run>/`` (a Stage-1 or PO
+checkpoint) makes the run depend on ``<other run>``, which must come earlier in the file (runs
+execute in file order). A run whose dependency is not done fails with a one-line error. A finished
+run is redone when a dependency finished after it (the dependency was redone) or when its
+command in the grid changed (``run.yaml`` holds the arguments it ran with).
 
 Grid file (YAML)::
 
@@ -24,6 +32,7 @@ Grid file (YAML)::
         low: {overrides: {data.init_args.noise_db: -80}}
     runs:                              # optional: explicit runs, after the matrix runs
       - {name: extra, configs: [...], overrides: {...}}
+      - {name: ref, command: test, overrides: {model: pkg.Reference}}   # test only, no fit
 
 An override's value may be a config file path (``model: conf/model/x.yaml``): jsonargparse loads it.
 """
@@ -52,6 +61,7 @@ DONE = "done"
 _NAME = re.compile(r"^[A-Za-z0-9_.=+-]+$")
 _GRID_KEYS = {"out_dir", "configs", "overrides", "test", "threads", "prepare", "report", "matrix", "runs"}
 _PART_KEYS = {"configs", "overrides"}
+COMMANDS = ("fit", "test")
 
 
 @dataclass
@@ -61,6 +71,7 @@ class Run:
     name: str
     configs: list[str] = field(default_factory=list)
     overrides: dict = field(default_factory=dict)
+    command: str = "fit"  # "test": score without fitting (nothing to train, or a given ckpt_path)
 
     def args(self, root_dir: Path) -> list[str]:
         """Lightning CLI arguments after the subcommand, logging under ``root_dir``."""
@@ -84,6 +95,16 @@ class Grid:
     def run_dir(self, run: Run) -> Path:
         return self.out_dir / run.name
 
+    def needs(self, run: Run) -> list[str]:
+        """Names of the runs whose folders ``run``'s override values point into, in override order."""
+        names = []
+        for value in run.overrides.values():
+            parts = Path(str(value)).parts
+            prefix = self.out_dir.parts
+            if len(parts) > len(prefix) and parts[: len(prefix)] == prefix and parts[len(prefix)] not in names:
+                names.append(parts[len(prefix)])
+        return names
+
 
 def _format(value) -> str:
     """Scalars as YAML scalars (true, 0.1, text); lists and dicts as JSON, which jsonargparse parses."""
@@ -94,11 +115,11 @@ def _format(value) -> str:
     return "null" if value is None else str(value)
 
 
-def _part(spec, where: str) -> tuple[list[str], dict]:
-    """The ``configs`` and ``overrides`` of one grid entry, checked."""
+def _part(spec, where: str, extra_keys: frozenset = frozenset({"name"})) -> tuple[list[str], dict]:
+    """The ``configs`` and ``overrides`` of one grid entry, checked (``extra_keys`` are read by the caller)."""
     spec = spec or {}
-    if not isinstance(spec, dict) or set(spec) - _PART_KEYS - {"name"}:
-        raise UserInputError(f"{where}: expected a mapping with keys {sorted(_PART_KEYS)}, got {spec!r}")
+    if not isinstance(spec, dict) or set(spec) - _PART_KEYS - extra_keys:
+        raise UserInputError(f"{where}: expected a mapping with keys {sorted(_PART_KEYS | extra_keys)}, got {spec!r}")
     configs = spec.get("configs") or []
     overrides = spec.get("overrides") or {}
     if not isinstance(configs, list) or not isinstance(overrides, dict):
@@ -137,8 +158,11 @@ def load_grid(path: str | Path) -> Grid:
     for i, entry in enumerate(spec.get("runs") or []):
         if not isinstance(entry, dict) or "name" not in entry:
             raise UserInputError(f"{path}: runs[{i}] needs a 'name'")
-        run_configs, run_overrides = _part(entry, f"{path}: runs[{i}]")
-        runs.append(Run(str(entry["name"]), run_configs, run_overrides))
+        run_configs, run_overrides = _part(entry, f"{path}: runs[{i}]", frozenset({"name", "command"}))
+        command = entry.get("command", "fit")
+        if command not in COMMANDS:
+            raise UserInputError(f"{path}: runs[{i}] ({entry['name']}): command must be one of {list(COMMANDS)}, got {command!r}")
+        runs.append(Run(str(entry["name"]), run_configs, run_overrides, command))
     if not runs:
         raise UserInputError(f"{path}: no runs (give 'matrix' and/or 'runs')")
     names = [run.name for run in runs]
@@ -158,11 +182,33 @@ def load_grid(path: str | Path) -> Grid:
     threads = spec.get("threads")
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
         raise UserInputError(f"{path}: 'threads' must be a positive integer, got {threads!r}")
-    return Grid(path, Path(spec["out_dir"]), runs, bool(spec.get("test", True)), prepare, spec.get("report"), threads)
+    grid = Grid(path, Path(spec["out_dir"]), runs, bool(spec.get("test", True)), prepare, spec.get("report"), threads)
+    for i, run in enumerate(runs):
+        earlier = set(names[:i])
+        for need in grid.needs(run):
+            if need not in earlier:
+                raise UserInputError(f"{path}: run {run.name!r} uses a path under {grid.out_dir / need}, "
+                                     f"which is not a run listed before it (runs execute in file order)")
+    return grid
 
 
 def is_done(run_dir: Path) -> bool:
     return (run_dir / DONE).is_file()
+
+
+def stale_because(grid: Grid, run: Run) -> str | None:
+    """Why a finished run must be redone (the grid changed its command, or a dependency finished
+    after it), else None."""
+    run_dir = grid.run_dir(run)
+    recorded = run_dir / "run.yaml"
+    if recorded.is_file() and (yaml.safe_load(recorded.read_text()) or {}).get(run.command) != run.args(run_dir / run.command):
+        return "its command in the grid changed"
+    finished = (run_dir / DONE).stat().st_mtime_ns
+    for need in grid.needs(run):
+        marker = grid.out_dir / need / DONE
+        if marker.is_file() and marker.stat().st_mtime_ns > finished:
+            return f"{need} finished after it"
+    return None
 
 
 def _write_atomic(path: Path, text: str) -> None:
@@ -196,25 +242,36 @@ def _cli(command: str, args: list[str]) -> None:
         raise RuntimeError(f"radar2shape {command} exited with code {code}")
 
 
+def _test(run: Run, run_dir: Path, record: dict, extra: list[str]) -> None:
+    """``test`` into ``run_dir/test``; its time and metrics go into ``record`` and ``metrics.json``."""
+    start = time.perf_counter()
+    _cli("test", run.args(run_dir / "test") + extra)
+    record["test_seconds"] = round(time.perf_counter() - start, 2)
+    metrics = _test_metrics(run_dir / "test")
+    _write_atomic(run_dir / "metrics.json", json.dumps(metrics, indent=2, sort_keys=True))
+
+
 def execute(grid: Grid, run: Run) -> dict:
     """Fit (and test) one run from scratch in its folder; returns what the ``done`` marker holds."""
     run_dir = grid.run_dir(run)
     if run_dir.exists():
         shutil.rmtree(run_dir)  # an unfinished run: its partial logs would confuse the next one
     run_dir.mkdir(parents=True)
-    fit_args = run.args(run_dir / "fit")
-    _write_atomic(run_dir / "run.yaml", yaml.safe_dump({"name": run.name, "grid": str(grid.path), "fit": fit_args}))
+    args = run.args(run_dir / run.command)
+    _write_atomic(run_dir / "run.yaml", yaml.safe_dump({"name": run.name, "grid": str(grid.path), run.command: args}))
+    record = {"name": run.name, "command": run.command}
+    if run.command == "test":
+        _test(run, run_dir, record, [])
+        record["wall_seconds"] = record["test_seconds"]
+        _write_atomic(run_dir / DONE, json.dumps(record, indent=2))
+        return record
     start = time.perf_counter()
-    _cli("fit", fit_args)
-    record = {"name": run.name, "fit_seconds": round(time.perf_counter() - start, 2)}
+    _cli("fit", args)
+    record["fit_seconds"] = round(time.perf_counter() - start, 2)
     checkpoint = _last_checkpoint(run_dir / "fit")
     record["checkpoint"] = str(checkpoint.relative_to(run_dir))
     if grid.test:
-        start = time.perf_counter()
-        _cli("test", run.args(run_dir / "test") + [f"--ckpt_path={checkpoint}"])
-        record["test_seconds"] = round(time.perf_counter() - start, 2)
-        metrics = _test_metrics(run_dir / "test")
-        _write_atomic(run_dir / "metrics.json", json.dumps(metrics, indent=2, sort_keys=True))
+        _test(run, run_dir, record, [f"--ckpt_path={checkpoint}"])
     record["wall_seconds"] = round(record["fit_seconds"] + record.get("test_seconds", 0.0), 2)
     _write_atomic(run_dir / DONE, json.dumps(record, indent=2))
     return record
@@ -236,10 +293,18 @@ def run_grid(grid: Grid, only: list[str] | None = None, keep_going: bool = False
     failed = 0
     for i, run in enumerate(runs, 1):
         run_dir = grid.run_dir(run)
-        if is_done(run_dir):
+        stale = stale_because(grid, run) if is_done(run_dir) else None
+        if is_done(run_dir) and not stale:
             print(f"[sweep] {i}/{len(runs)} {run.name}: done, skipped", flush=True)
             continue
-        print(f"[sweep] {i}/{len(runs)} {run.name}: running in {run_dir}", flush=True)
+        print(f"[sweep] {i}/{len(runs)} {run.name}: {'redone, ' + stale if stale else 'running'} in {run_dir}", flush=True)
+        missing = [need for need in grid.needs(run) if not is_done(grid.out_dir / need)]
+        if missing:
+            failed += 1
+            print(f"[sweep] {run.name}: FAILED: needs {missing}, not done (run those first)", file=sys.stderr, flush=True)
+            if not keep_going:
+                break
+            continue
         try:
             record = execute(grid, run)
         except Exception:
@@ -288,8 +353,8 @@ def main(argv: list[str] | None = None) -> int:
         grid = load_grid(args.grid)
         if args.list:
             for run in grid.runs:
-                state = "done" if is_done(grid.run_dir(run)) else "todo"
-                print(f"{run.name} [{state}]: fit {' '.join(run.args(grid.run_dir(run) / 'fit'))}")
+                state = "todo" if not is_done(grid.run_dir(run)) or stale_because(grid, run) else "done"
+                print(f"{run.name} [{state}]: {run.command} {' '.join(run.args(grid.run_dir(run) / run.command))}")
             return 0
         start = time.perf_counter()
         with torch_threads(args.threads or grid.threads):

@@ -86,7 +86,8 @@ def mean_scores(model, batch: dict, n_points: int = 4096) -> dict[str, float]:
 
 def trainer_roundtrip(model, batch: dict, root, steps: int = 1):
     """Fit ``steps`` steps with a Lightning Trainer, save a checkpoint, check that it loads with
-    ``torch.load(weights_only=True)`` and return ``type(model).load_from_checkpoint`` of it."""
+    ``torch.load(weights_only=True)`` with the same hyperparameters; returns
+    ``(type(model).load_from_checkpoint of it, the batch's first shape)``, both models in eval mode."""
     import lightning as L
 
     items = [{k: v[i] for k, v in batch.items()} for i in range(len(batch["index"]))]
@@ -96,7 +97,10 @@ def trainer_roundtrip(model, batch: dict, root, steps: int = 1):
     path = root / "model.ckpt"
     trainer.save_checkpoint(path)
     torch.load(path, map_location="cpu", weights_only=True)
-    return type(model).load_from_checkpoint(path, map_location="cpu", weights_only=True)
+    loaded = type(model).load_from_checkpoint(path, map_location="cpu", weights_only=True)
+    assert loaded.hparams == model.hparams
+    model.eval()
+    return loaded.eval(), subset(batch, [0])
 
 
 def model_from_config(path: str, **overrides):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 import torch
-from baseline_data import RADAR_SHAPE, mean_scores, model_from_config, one_thread, shape_batch, subset, train_steps, trainer_roundtrip
+from baseline_data import RADAR_SHAPE, mean_scores, model_from_config, one_thread, shape_batch, train_steps, trainer_roundtrip
 
 from baselines import DiffusionSDF
 from radar2shape.errors import UserInputError
@@ -69,11 +69,10 @@ def test_checkpoint_holds_primitive_hyperparameters(batch, tmp_path):
     stage1 = SDFVAE(**STAGE1)
     model = model_on(stage1)
     model.standardiser.fit(torch.randn(8, 1, 16))
-    loaded = trainer_roundtrip(model, batch, tmp_path)
+    loaded, one = trainer_roundtrip(model, batch, tmp_path)
     assert loaded.hparams.radar_blocks == 2 and loaded.hparams.stage1_hparams == dict(stage1.hparams)
-    one = subset(batch, [0])
     h, t = torch.zeros(1, 1, 16), torch.tensor([5])
-    torch.testing.assert_close(loaded.eval()(one["radar"], one["radar_mask"], h, t), model.eval()(one["radar"], one["radar_mask"], h, t))
+    torch.testing.assert_close(loaded(one["radar"], one["radar_mask"], h, t), model(one["radar"], one["radar_mask"], h, t))
 
 
 def test_latents_are_learned_from_radar(batch):

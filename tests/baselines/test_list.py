@@ -4,19 +4,13 @@ import math
 
 import pytest
 import torch
-from baseline_data import RADAR_SHAPE, mean_scores, model_from_config, one_thread, shape_batch, subset, train_steps, trainer_roundtrip
+from baseline_data import RADAR_SHAPE, mean_scores, one_thread, shape_batch, train_steps, trainer_roundtrip
 
 from baselines import LIST
 from baselines.list_net import radar_coordinates
 
 TINY = dict(n_freq=RADAR_SHAPE[-1], feature_dim=64, encoder_width=0.125, coarse_points=128, cloud_dim=32, local_dim=16,
             hidden=128, n_hidden=3, mesh_resolution=32)
-
-
-@pytest.mark.parametrize("config", ["conf/model/list_tiny.yaml", pytest.param("conf/model/list.yaml", marks=pytest.mark.slow)])
-def test_config_files_build_the_model(config):
-    model = model_from_config(config)
-    assert isinstance(model, LIST)
 
 
 @pytest.fixture(scope="module")
@@ -54,19 +48,18 @@ def test_each_query_reads_the_feature_map_where_the_radar_looks_along_it(batch):
 def test_checkpoint_holds_primitive_hyperparameters(batch, tmp_path):
     torch.manual_seed(0)
     model = LIST(**TINY)
-    loaded = trainer_roundtrip(model, batch, tmp_path)
-    assert loaded.hparams == model.hparams
-    one = subset(batch, [0])
-    ctx, loaded_ctx = model.eval().context(one["radar"], one["radar_mask"]), loaded.eval().context(one["radar"], one["radar_mask"])
+    loaded, one = trainer_roundtrip(model, batch, tmp_path)
+    ctx, loaded_ctx = model.context(one["radar"], one["radar_mask"]), loaded.context(one["radar"], one["radar_mask"])
     torch.testing.assert_close(loaded.sdf(loaded_ctx, one["sdf_points"][:, :64]), model.sdf(ctx, one["sdf_points"][:, :64]))
 
 
 def test_overfits_eight_shapes(batch):
-    """120 full-batch steps (~45 s on one core): Chamfer x10^3 ~3.6, IoU ~0.69, F@1% ~0.09
-    (200 steps: 2.2, 0.81, 0.20; marching cubes at 32^3 limits the F-score)."""
+    """Fast learning test: 100 full-batch steps on half the SDF samples (~30 s on one core).
+    Calibration: Chamfer x10^3 ~3.6, IoU ~0.67, F@1% ~0.12 (marching cubes at 32^3)."""
     torch.manual_seed(0)
     model = LIST(**TINY)
-    history = train_steps(model, batch, 120)
+    half = {**batch, "sdf_points": batch["sdf_points"][:, ::2], "sdf_values": batch["sdf_values"][:, ::2]}
+    history = train_steps(model, half, 100)
     scores = mean_scores(model, batch)
     assert history[-1] < 0.2 * history[0]
     assert scores["chamfer_l2_x1e3"] < 5.0 and scores["iou"] > 0.6, scores

@@ -4,19 +4,11 @@ from __future__ import annotations
 
 import pytest
 import torch
-from test_radar_diffusion import GRID, RadarStub, fit, radar_batch, sphere_batch, sphere_stage1, tiny_model
+from test_radar_diffusion import GRID, RadarStub, fit, radar_batch, single_thread, sphere_batch, sphere_stage1, tiny_model  # noqa: F401 (autouse fixture)
 
 from radar2shape.errors import UserInputError
 from radar2shape.models.lora_finetune import LoRARadarDiffusion
 from radar2shape.models.radar_diffusion import RadarDiffusion
-
-
-@pytest.fixture(autouse=True, scope="module")
-def single_thread():
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
 
 
 @pytest.fixture(scope="module")
@@ -88,3 +80,28 @@ def test_cli_defaults_do_not_resize_the_base(base):
     _, path = base
     model = LoRARadarDiffusion(base_ckpt=path, dim=512, n_layers=8, stage1_hparams=None, radar_meta=None)
     assert model.hparams.dim == 32 and model.hparams.radar_meta is not None
+
+
+def test_base_trained_through_the_cli_loads(base, tmp_path):
+    """A checkpoint written by `radar2shape fit` carries LightningCLI's `_class_path` / `_instantiator`
+    in its hyperparameters; they are not RadarDiffusion arguments."""
+    _, path = base
+    ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    ckpt["hyper_parameters"].update(_class_path="radar2shape.models.radar_diffusion.RadarDiffusion", _instantiator="x")
+    torch.save(ckpt, tmp_path / "cli.ckpt")
+    model = LoRARadarDiffusion(base_ckpt=str(tmp_path / "cli.ckpt"))
+    assert not any(k.startswith("_") for k in model.hparams)
+    torch.testing.assert_close(denoise(model), denoise(LoRARadarDiffusion(base_ckpt=path)), atol=0, rtol=0)
+
+
+def test_built_by_the_cli_keeps_its_class_path(base):
+    """`radar2shape test --ckpt_path LORA.ckpt` rebuilds the model from the checkpoint's hparams and
+    needs LightningCLI's "_class_path" there (without it the CLI fails to parse them)."""
+    from lightning.pytorch.core.mixins.hparams_mixin import _given_hyperparameters_context
+
+    _, path = base
+    given = {"_class_path": "radar2shape.models.lora_finetune.LoRARadarDiffusion", "base_ckpt": path, "lora_rank": 4}
+    with _given_hyperparameters_context(hparams=given, instantiator="lightning.pytorch.cli.instantiate_module"):
+        model = LoRARadarDiffusion(base_ckpt=path)
+    assert model.hparams["_class_path"] == given["_class_path"]
+    assert model.hparams.base_ckpt is None and model.hparams.stage1_hparams is not None

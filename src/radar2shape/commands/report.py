@@ -10,17 +10,26 @@ Reads the runs of ``conf/grid/NAME.yaml`` (or a grid file path) from their folde
   ground-truth row (the files the metric callback saved during ``test``).
 
 Run names say where a run goes: ``<model>-<group>`` is the cell of row ``model`` in column group
-``group`` (``radar2shape-full``, ``tmnet-partial``, later e.g. ``tmnet-partial-posbr``); a name
-without ``-`` is an auxiliary run (e.g. a Stage-1 VAE) listed with its wall time only. Folders
-of ``out_dir`` named like a cell but not in the grid (a model scored by hand with
-``radar2shape test --trainer.default_root_dir <out_dir>/<model>-<group>/test``, e.g. the
-training-free references) are cells too, read from their logged test metrics.
+``group`` (``radar2shape-full``, ``tmnet-partial``, ``radar2shape-full-sbr`` for PO-SBR test
+data); a name without ``-`` is an auxiliary run (e.g. a Stage-1 VAE) listed with its wall time
+only. Folders of ``out_dir`` named like a cell but not in the grid (a model scored by hand with
+``radar2shape test --trainer.default_root_dir <out_dir>/<model>-<group>/test``, or written by
+another experiment's script) are read from their logged test metrics and shown in a separate
+table under the grid's: another protocol, never mixed into the grid's table, bold or CSV. A run
+folder may hold a ``note`` file (one line, e.g. where a result was carried over from): it is
+printed under the table, so no cell's origin is hidden.
+
+Grids whose ``report:`` script is another one (``conf/grid/rollsym.yaml``: ``scripts/rollsym_table.py``,
+the paper's Table 2 layout) are handed to that script as ``python SCRIPT --grid FILE [--out DIR]``,
+the same call the sweep makes, so ``radar2shape report --grid NAME`` serves every grid.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import subprocess
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,8 +52,14 @@ MODEL_TITLES = {
     "list": "LIST",
     "nearest": "Nearest neighbour",
     "mean_shape": "Mean shape",
+    "radar2shape_lora": "Radar2Shape + LoRA (PO-SBR fine-tuned)",
 }
-GROUP_TITLES = {"full": "full", "partial": "partial (70 % masked)"}
+GROUP_TITLES = {
+    "full": "full",
+    "partial": "partial (70 % masked)",
+    "full-sbr": "PO-SBR test, full",
+    "partial-sbr": "PO-SBR test, partial",
+}
 FIGURE_SHAPES = 4
 
 
@@ -120,14 +135,25 @@ def table_rows(cells: list[Cell]) -> tuple[list[tuple[str, dict]], list[Column],
 
 
 def runs_table(cells: list[Cell]) -> str:
-    """Markdown list of every run: state and wall time (fit + test)."""
-    lines = ["| run | state | fit s | test s | wall s |", "|---|---|---|---|---|"]
+    """Markdown list of every run: state, command and wall time (fit + test)."""
+    lines = ["| run | state | command | fit s | test s | wall s |", "|---|---|---|---|---|---|"]
     for cell in cells:
         r = cell.record
-        lines.append(f"| {cell.name} | {cell.state} | {r.get('fit_seconds', '')} | {r.get('test_seconds', '')} | {r.get('wall_seconds', '')} |")
+        command = r.get("command", "fit" if "fit_seconds" in r else "")
+        lines.append(f"| {cell.name} | {cell.state} | {command} | {r.get('fit_seconds', '')} | {r.get('test_seconds', '')} | {r.get('wall_seconds', '')} |")
     total = sum(c.record.get("wall_seconds", 0.0) for c in cells)
-    lines.append(f"| **total** | | | | **{total:.0f}** |")
+    lines.append(f"| **total** | | | | | **{total:.0f}** |")
     return "\n".join(lines)
+
+
+def run_notes(cells: list[Cell]) -> list[str]:
+    """``- run: note`` for every run folder holding a ``note`` file."""
+    notes = []
+    for cell in cells:
+        note = cell.run_dir / "note"
+        if note.is_file():
+            notes.append(f"- `{cell.name}`: {' '.join(note.read_text().split())}")
+    return notes
 
 
 def write_report(grid_file: Path, out: Path | None, n_shapes: int = FIGURE_SHAPES) -> Path:
@@ -139,11 +165,12 @@ def write_report(grid_file: Path, out: Path | None, n_shapes: int = FIGURE_SHAPE
     out = Path(out) if out else Path("reports") / name
     out.mkdir(parents=True, exist_ok=True)
     cells = collect_cells(grid)
-    rows, columns, groups = table_rows(cells)
+    in_grid, outside = cells[: len(grid.runs)], cells[len(grid.runs):]
+    rows, columns, groups = table_rows(in_grid)
     write_csv(rows, columns, out / f"{name}.csv")
     figures = []
     for group in groups:
-        group_cells = [c for c in cells if split_name(c.name)[1] == group and c.state in ("done", "tested")]
+        group_cells = [c for c in in_grid if split_name(c.name)[1] == group and c.state == "done"]
         figure = save_figure(group_cells, out / f"{name}_{group}.png", n_shapes, GROUP_TITLES.get(group, group))
         figures += [figure] if figure else []
     text = [
@@ -155,6 +182,20 @@ def write_report(grid_file: Path, out: Path | None, n_shapes: int = FIGURE_SHAPE
         "",
         markdown_table(rows, columns),
         "",
+    ]
+    if outside:  # not the grid's test protocol, so never in its table, its bold or its CSV
+        extra_rows, extra_columns, _ = table_rows(outside)
+        text += [
+            "Rows tested outside the grid (folders of the run directory that the grid does not list, e.g. "
+            "written by another experiment's script; their test data and protocol are their own, so they "
+            "are not compared with the table above):",
+            "",
+            markdown_table(extra_rows, extra_columns),
+            "",
+        ]
+    notes = run_notes(cells)
+    text += ["Notes on individual runs:", "", *notes, ""] if notes else []
+    text += [
         "## Runs",
         "",
         runs_table(cells),
@@ -244,10 +285,26 @@ def save_figure(cells: list[Cell], path: Path, n_shapes: int, title: str) -> Pat
     return path
 
 
+def other_report_script(grid_file: Path) -> Path | None:
+    """The grid's ``report:`` script when it is not this module (e.g. scripts/rollsym_table.py), else None."""
+    from radar2shape.sweep import load_grid
+
+    script = load_grid(grid_file).report
+    if not script or Path(script).resolve() == Path(__file__).resolve():
+        return None
+    if not Path(script).is_file():
+        raise UserInputError(f"{grid_file}: report script {script} not found")
+    return Path(script)
+
+
 def main(args: argparse.Namespace) -> int:
     grid_file = grid_path(args.grid)
     if not grid_file.is_file():
         raise UserInputError(f"--grid: {grid_file} not found (give a name under conf/grid/ or a grid YAML file)")
+    script = other_report_script(grid_file)
+    if script is not None:  # the grid's own layout (Table 2 for rollsym): the call the sweep makes
+        command = [sys.executable, str(script), "--grid", str(grid_file)] + (["--out", str(args.out)] if args.out else [])
+        return subprocess.run(command).returncode
     path = write_report(grid_file, args.out, args.shapes)
     print(f"wrote {path}")
     return 0

@@ -51,7 +51,8 @@ class LoRARadarDiffusion(RadarDiffusion):
             state, base_source = ckpt["state_dict"], str(base_ckpt)
         elif hparams.get("stage1_hparams") is None:
             raise UserInputError("LoRARadarDiffusion needs base_ckpt (a PO-trained RadarDiffusion checkpoint)")
-        hparams = {k: v for k, v in hparams.items() if k not in LORA_HPARAMS and k != "_instantiator"}
+        # "_class_path" / "_instantiator": what LightningCLI adds to a checkpoint's hparams, not arguments
+        hparams = {k: v for k, v in hparams.items() if k not in LORA_HPARAMS and not k.startswith("_")}
         hparams["stage1_ckpt"] = None  # Stage 1 comes from stage1_hparams and the weights
         for key, value in (("lr", lr), ("weight_decay", weight_decay)):
             if value is not None:
@@ -63,9 +64,11 @@ class LoRARadarDiffusion(RadarDiffusion):
         if not apply_lora(self.transformer, targets, lora_rank, lora_alpha, lora_dropout):
             raise UserInputError(f"lora_targets: no nn.Linear named {targets} in the Transformer")
         mark_only_lora_trainable(self)
-        # hparams: the full RadarDiffusion set plus the LoRA settings (reloads without base_ckpt)
+        # hparams: the full RadarDiffusion set plus the LoRA settings (reloads without base_ckpt).
+        # LightningCLI's own keys ("_class_path" = this class) stay: `test --ckpt_path` rebuilds the
+        # model from them, and without "_class_path" it cannot parse the saved hyperparameters.
         for key in list(self.hparams):
-            if key not in hparams:
+            if key not in hparams and not key.startswith("_"):
                 del self.hparams[key]
         self.hparams.update(hparams)
         self.hparams.update(base_ckpt=None, base_source=base_source, lora_rank=int(lora_rank),
