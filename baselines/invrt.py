@@ -73,19 +73,5 @@ class InvRT(ProfileModel):
         channels = self.radar_input(batch)  # checked [B, F + 1, A]: radar zeroed where masked, then mask
         return self(channels[:, :-1].transpose(1, 2), channels[:, -1] > 0.5)
 
-    def _loss(self, batch: dict) -> torch.Tensor:
+    def training_loss(self, batch: dict) -> torch.Tensor:
         return LOSSES[self.hparams.loss](self.predict_normalised(batch), self.target_profiles(batch))
-
-    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
-        loss = self._loss(batch)
-        self.log("train/loss", loss, prog_bar=True, batch_size=batch["radar"].shape[0])
-        return loss
-
-    def validation_step(self, batch: dict, batch_idx: int) -> None:
-        self.log("val/loss", self._loss(batch), prog_bar=True, batch_size=batch["radar"].shape[0])
-
-    def test_step(self, batch: dict, batch_idx: int) -> None:
-        self.log("test/loss", self._loss(batch), batch_size=batch["radar"].shape[0])
-
-    def configure_optimizers(self):
-        return torch.optim.AdamW(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)

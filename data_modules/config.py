@@ -47,15 +47,20 @@ def _jsonable(value):
     return value
 
 
+def _check_keys(values: dict, cls, prefix: str, where: str = "") -> None:
+    """Name the keys of ``values`` that dataclass ``cls`` has no field for (typos fail loudly)."""
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise UserInputError(f"{prefix}unknown key(s) {unknown}{where}; expected some of {sorted(known)}")
+
+
 def _section(cls, values, name: str, source: str):
     """Build dataclass ``cls`` from a mapping, naming unknown keys in the error."""
     values = values or {}
     if not isinstance(values, dict):
         raise UserInputError(f"{source}: '{name}' must be a mapping, got {type(values).__name__}")
-    known = {f.name for f in fields(cls)}
-    unknown = sorted(set(values) - known)
-    if unknown:
-        raise UserInputError(f"{source}: unknown key(s) {unknown} in '{name}'; expected some of {sorted(known)}")
+    _check_keys(values, cls, f"{source}: ", f" in '{name}'")
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
     return cls(**values)
 
@@ -107,10 +112,7 @@ def load_build_config(path: str | Path, num: int | None = None) -> BuildConfig:
     raw = yaml.safe_load(path.read_text()) or {}
     if not isinstance(raw, dict):
         raise UserInputError(f"{path}: expected a mapping of config keys")
-    known = {f.name for f in fields(BuildConfig)}
-    unknown = sorted(set(raw) - known)
-    if unknown:
-        raise UserInputError(f"{path}: unknown key(s) {unknown}; expected some of {sorted(known)}")
+    _check_keys(raw, BuildConfig, f"{path}: ")
     if "family" not in raw:
         raise UserInputError(f"{path}: missing 'family' (frusta, parts or folder)")
     config = BuildConfig(

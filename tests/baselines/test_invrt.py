@@ -52,7 +52,7 @@ def test_overfits_eight_profiles(batch):
     torch.manual_seed(0)
     start = time.perf_counter()
     model = InvRT(**TINY)
-    losses = train(model, batch, model._loss, steps=300)
+    losses = train(model, batch, model.training_loss, steps=300)
     iou = mean_section_iou(model, batch)
     print(f"InvRT overfit: IoU-S {iou:.3f}, loss {losses[0]:.3f} -> {losses[-1]:.3f} in {time.perf_counter() - start:.0f} s")
     assert losses[-1] < 0.3 * losses[0]

@@ -79,7 +79,8 @@ class ProfileModel(ReconstructionModel):
     """Base of the roll-symmetric models: checked inputs, profile scaling, meshes for the metrics.
 
     Subclasses implement :meth:`predict_normalised` (``batch -> [B, P, 2]`` at network scale) and
-    their training step; everything a metric needs comes from here.
+    :meth:`training_loss`; the Lightning steps (one logged loss per stage), AdamW on
+    ``hparams.lr`` / ``weight_decay`` and everything a metric needs come from here.
     """
 
     num_aspect: int
@@ -127,6 +128,24 @@ class ProfileModel(ReconstructionModel):
     def predict_normalised(self, batch: dict) -> torch.Tensor:
         """The model's profiles ``[B, P, 2]`` at network scale (what the subclass is about)."""
         raise NotImplementedError
+
+    def training_loss(self, batch: dict) -> torch.Tensor:
+        """The scalar objective of one batch (what the subclass trains)."""
+        raise NotImplementedError
+
+    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
+        loss = self.training_loss(batch)
+        self.log("train/loss", loss, prog_bar=True, batch_size=batch["radar"].shape[0])
+        return loss
+
+    def validation_step(self, batch: dict, batch_idx: int) -> None:
+        self.log("val/loss", self.training_loss(batch), prog_bar=True, batch_size=batch["radar"].shape[0])
+
+    def test_step(self, batch: dict, batch_idx: int) -> None:
+        self.log("test/loss", self.training_loss(batch), batch_size=batch["radar"].shape[0])
+
+    def configure_optimizers(self):
+        return torch.optim.AdamW(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)
 
     @torch.no_grad()
     def predict_profiles(self, batch: dict) -> list[np.ndarray]:
@@ -233,16 +252,8 @@ class ProfileUNetDiffusion(ProfileModel):
             per_sample = per_sample * snr.clamp(max=self.hparams.min_snr_gamma) / snr
         return per_sample.mean()
 
-    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
-        loss = self.diffusion_loss(batch)
-        self.log("train/loss", loss, prog_bar=True, batch_size=batch["radar"].shape[0])
-        return loss
-
-    def validation_step(self, batch: dict, batch_idx: int) -> None:
-        self.log("val/loss", self.diffusion_loss(batch), prog_bar=True, batch_size=batch["radar"].shape[0])
-
-    def test_step(self, batch: dict, batch_idx: int) -> None:
-        self.log("test/loss", self.diffusion_loss(batch), batch_size=batch["radar"].shape[0])
+    def training_loss(self, batch: dict) -> torch.Tensor:
+        return self.diffusion_loss(batch)
 
     def predict_normalised(self, batch: dict) -> torch.Tensor:
         """Sampled profiles at network scale, the point-wise mean of ``num_samples`` draws.
@@ -261,6 +272,3 @@ class ProfileUNetDiffusion(ProfileModel):
             steps=hp.sample_steps if hp.sampler == "ddim" else None, generator=generator, device=radar_input.device,
         )
         return samples.view(k, b, self.profile_points, 2).mean(dim=0)
-
-    def configure_optimizers(self):
-        return torch.optim.AdamW(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)
