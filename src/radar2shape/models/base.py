@@ -1,26 +1,40 @@
-"""The one reconstruction interface every model (ours and baselines) implements.
+"""The base task every model (ours and baselines) is built on, and the reconstruction it returns.
 
-Metric callbacks only talk to this interface, so a metric never knows which model it scores.
+``ReconstructionModel`` owns what all models share, once: the train/val/test steps and their
+logging (from one :meth:`~ReconstructionModel.losses`), the optimizer and learning-rate schedule
+(from hyperparameters), and the radar spec (grid + dB normalisation) that travels in every
+checkpoint. A model keeps only what is its own: its networks, its losses and
+:meth:`~ReconstructionModel.reconstruct`. Metric callbacks only talk to ``reconstruct``, so a
+metric never knows which model it scores.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import lightning as L
 import numpy as np
+import torch
 import trimesh
+
+if TYPE_CHECKING:
+    from radar2shape.radar.spec import RadarSpec
+
+RADAR_SPEC_KEY = "radar_spec"
 
 
 @dataclass
 class Reconstruction:
     """A predicted shape in normalised coordinates (unit cube [-0.5, 0.5]^3).
 
-    Exactly what the model produces: a surface mesh, or a point set for point-cloud models.
+    Exactly what the model produces: a surface mesh, or a point set for point-cloud models;
+    ``profile`` is the (r, z) outline of roll-symmetric predictions (None otherwise).
     """
 
     mesh: trimesh.Trimesh | None = None
     points: np.ndarray | None = None
+    profile: np.ndarray | None = None
 
     @property
     def is_empty(self) -> bool:
@@ -30,9 +44,102 @@ class Reconstruction:
         return not (has_mesh or has_points)
 
 
+def batch_size_of(batch: dict) -> int:
+    """Number of samples in a batch: the leading size of its first tensor."""
+    for value in batch.values():
+        if isinstance(value, torch.Tensor) and value.dim() > 0:
+            return int(value.shape[0])
+    raise ValueError(f"batch has no tensor to count samples from (keys: {sorted(batch)})")
+
+
 class ReconstructionModel(L.LightningModule):
-    """A LightningModule that can turn a batch into one reconstruction per sample."""
+    """A LightningModule that trains from :meth:`losses` and turns a batch into reconstructions.
+
+    Subclasses implement :meth:`losses` (a dict with the total under ``"loss"``; empty for
+    models that train nothing) and :meth:`reconstruct`. Optional hooks:
+    :meth:`eval_losses` (deterministic losses for validation/test) and
+    :meth:`check_radar_spec` (refuse a DataModule whose radar does not fit the network).
+
+    Hyperparameters read here, with defaults for models that do not declare them: ``lr``,
+    ``weight_decay``, ``lr_decay_steps`` (0: constant rate) and ``lr_decay`` (step factor).
+    ``optimizer_class`` picks Adam or AdamW per model.
+    """
+
+    optimizer_class: type[torch.optim.Optimizer] = torch.optim.AdamW
+    radar_spec: RadarSpec | None = None
+
+    # ---- what a model implements --------------------------------------------------------------
+    def losses(self, batch: dict) -> dict[str, torch.Tensor]:
+        """Loss terms of one training batch; the optimised total under ``"loss"``."""
+        raise NotImplementedError(f"{type(self).__name__} must implement losses(batch)")
+
+    def eval_losses(self, batch: dict, batch_idx: int) -> dict[str, torch.Tensor]:
+        """Loss terms for validation and test; override to make them deterministic."""
+        return self.losses(batch)
 
     def reconstruct(self, batch: dict) -> list[Reconstruction]:
         """Return one :class:`Reconstruction` per sample of ``batch`` (same order)."""
         raise NotImplementedError(f"{type(self).__name__} must implement reconstruct(batch)")
+
+    def check_radar_spec(self, spec: RadarSpec) -> None:
+        """Raise UserInputError when ``spec`` does not fit this network (default: accept)."""
+
+    # ---- the Lightning steps, once -------------------------------------------------------------
+    def _log_losses(self, stage: str, losses: dict[str, torch.Tensor], batch: dict) -> None:
+        if not losses:
+            return
+        size = batch_size_of(batch)
+        self.log_dict({f"{stage}/{k}": v.detach() for k, v in losses.items()},
+                      on_step=stage == "train", on_epoch=True, batch_size=size, sync_dist=stage != "train")
+        self.log(f"{stage}_loss", losses["loss"].detach(), prog_bar=True, logger=False, batch_size=size,
+                 sync_dist=stage != "train")
+
+    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
+        losses = self.losses(batch)
+        self._log_losses("train", losses, batch)
+        return losses["loss"]
+
+    def validation_step(self, batch: dict, batch_idx: int) -> None:
+        self._log_losses("val", self.eval_losses(batch, batch_idx), batch)
+
+    def test_step(self, batch: dict, batch_idx: int) -> None:
+        """Logs the test losses; shape metrics come from the evaluator callback via ``reconstruct``."""
+        self._log_losses("test", self.eval_losses(batch, batch_idx), batch)
+
+    # ---- optimisation from hyperparameters -----------------------------------------------------
+    def configure_optimizers(self):
+        hp = self.hparams
+        params = [p for p in self.parameters() if p.requires_grad]
+        if not params:
+            return None
+        optimizer = self.optimizer_class(params, lr=float(hp.get("lr", 1e-3)),
+                                         weight_decay=float(hp.get("weight_decay", 0.0)))
+        decay_steps = int(hp.get("lr_decay_steps", 0) or 0)
+        if decay_steps <= 0:
+            return optimizer
+        scheduler = torch.optim.lr_scheduler.StepLR(optimizer, decay_steps, gamma=float(hp.get("lr_decay", 0.5)))
+        return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}
+
+    # ---- the radar spec travels with the weights -----------------------------------------------
+    def set_radar_spec(self, spec: RadarSpec | None) -> None:
+        """Adopt the training data's radar spec (checked against the network first)."""
+        if spec is not None:
+            self.check_radar_spec(spec)
+        self.radar_spec = spec
+
+    def on_fit_start(self) -> None:
+        """Take the radar spec from the DataModule, so every checkpoint of this fit stores it."""
+        datamodule = getattr(self.trainer, "datamodule", None)
+        spec = getattr(datamodule, "radar_spec", None)
+        if spec is not None:
+            self.set_radar_spec(spec)
+
+    def on_save_checkpoint(self, checkpoint: dict) -> None:
+        if self.radar_spec is not None:
+            checkpoint[RADAR_SPEC_KEY] = self.radar_spec.to_dict()
+
+    def on_load_checkpoint(self, checkpoint: dict) -> None:
+        if checkpoint.get(RADAR_SPEC_KEY) is not None:
+            from radar2shape.radar.spec import RadarSpec
+
+            self.radar_spec = RadarSpec.from_dict(checkpoint[RADAR_SPEC_KEY])
