@@ -27,15 +27,15 @@ LIGHTNING_COMMANDS = {
 class ToolCommand:
     module: str
     summary: str
-    issue: str
 
 
 TOOL_COMMANDS = {
-    "simulate": ToolCommand("radar2shape.commands.simulate", "Simulate the radar response of a mesh.", "#3"),
-    "build-data": ToolCommand("data_modules.commands.build_data", "Build a dataset of shapes + radar.", "#4"),
-    "reconstruct": ToolCommand("radar2shape.commands.reconstruct", "Reconstruct a mesh from radar.", "#7"),
-    "evaluate": ToolCommand("radar2shape.commands.evaluate", "Metrics between two meshes (JSON).", "#5"),
-    "report": ToolCommand("radar2shape.commands.report", "Collect runs into the paper's tables.", "#9"),
+    "simulate": ToolCommand("radar2shape.commands.simulate", "Simulate the radar response of a mesh."),
+    "build-data": ToolCommand("data_modules.commands.build_data", "Build a dataset of shapes + radar."),
+    "reconstruct": ToolCommand("radar2shape.commands.reconstruct", "Reconstruct a mesh from radar."),
+    "evaluate": ToolCommand("radar2shape.commands.evaluate", "Metrics between two meshes (JSON)."),
+    "sweep": ToolCommand("radar2shape.commands.sweep", "Run a grid of experiments (resumable)."),
+    "report": ToolCommand("radar2shape.commands.report", "Collect runs into the paper's tables."),
 }
 
 
@@ -48,26 +48,11 @@ def _print_help() -> None:
     print("\n".join(lines))
 
 
-def _load_tool(name: str):
-    """Import a tool command's module, or None when the issue that adds it has not landed."""
-    command = TOOL_COMMANDS[name]
-    try:
-        return importlib.import_module(command.module)
-    except ModuleNotFoundError as err:
-        if err.name and command.module.startswith(err.name):
-            return None
-        raise
-
-
 def run_tool(name: str, argv: list[str]) -> int:
     """Parse ``argv`` for tool ``name`` and run it, turning bad input into a one-line error."""
     from radar2shape.errors import UserInputError
 
-    module = _load_tool(name)
-    if module is None:
-        issue = TOOL_COMMANDS[name].issue
-        print(f"error: '{name}' is not yet available; it lands with issue {issue} (README: Roadmap)", file=sys.stderr)
-        return 2
+    module = importlib.import_module(TOOL_COMMANDS[name].module)
     parser = argparse.ArgumentParser(prog=f"radar2shape {name}", description=TOOL_COMMANDS[name].summary)
     module.configure_parser(parser)
     args = parser.parse_args(argv)
