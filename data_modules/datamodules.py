@@ -27,7 +27,7 @@ DEFAULT_POINTS = {
 
 
 class ShapeDataModule(L.LightningDataModule):
-    """Batches of 3D radar ``[B, A, R, F]`` with shape targets (docs/contracts.md batch keys).
+    """Batches of 3D radar ``[B, A, R, F]`` with shape targets (docs/design.md section 10, batch keys).
 
     Args:
         root: dataset folder written by ``radar2shape build-data``.

@@ -70,7 +70,7 @@ class EpochSampler(Sampler):
 
 
 class RecordDataset(Dataset):
-    """Items with the batch keys of docs/contracts.md for the full 3D radar ``[A, R, F]``.
+    """Items with the batch keys of docs/design.md section 10 for the full 3D radar ``[A, R, F]``.
 
     ``points`` maps a subset name (surface, sdf, eval, occ) to a count: ``-1`` = all stored
     points, missing or 0 = leave the keys out; evaluation takes at most the stored count

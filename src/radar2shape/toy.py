@@ -1,19 +1,19 @@
 """A tiny built-in problem (sphere radius from its radar) for CLI smoke tests and tutorials.
 
 Spheres are the one shape whose PO radar cross-section has a closed form
-(DESIGN.md section 5), so the data needs no simulator and no files, and a model that
+(docs/design.md section 5), so the data needs no simulator and no files, and a model that
 learns it shows the whole fit/test path works: radar in, mesh out, metrics on top.
 """
 
 from __future__ import annotations
 
-import lightning as L
 import numpy as np
 import torch
 import trimesh
 from torch import nn
 from torch.utils.data import DataLoader, TensorDataset
 
+from radar2shape.datamodule import ReconstructionDataModule
 from radar2shape.models.base import Reconstruction, ReconstructionModel
 
 SPEED_OF_LIGHT = 299_792_458.0
@@ -42,7 +42,7 @@ def _sphere_batch(radii: np.ndarray, freq_hz: np.ndarray, n_eval: int, n_occ: in
     }
 
 
-class ToySphereDataModule(L.LightningDataModule):
+class ToySphereDataModule(ReconstructionDataModule):
     """Spheres of random radius in the unit cube (object size 1 m per unit) with their PO radar."""
 
     KEYS = ("radar", "radius", "eval_points", "occ_points", "occ_inside", "label", "index")

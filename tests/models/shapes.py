@@ -16,7 +16,7 @@ import torch
 from torch.utils.data import Dataset
 
 SDF = Callable[[np.ndarray], np.ndarray]
-PAD = 0.55  # half-extent of the padded cube used for uniform samples (DESIGN.md section 6)
+PAD = 0.55  # half-extent of the padded cube used for uniform samples (docs/design.md section 6)
 
 
 def sphere(p, r=0.35, c=(0.0, 0.0, 0.0)):

@@ -1,4 +1,4 @@
-"""PO against the closed forms of DESIGN.md section 5 (sphere, plate, cylinder, body of revolution)."""
+"""PO against the closed forms of docs/design.md section 5 (sphere, plate, cylinder, body of revolution)."""
 
 import numpy as np
 import pytest

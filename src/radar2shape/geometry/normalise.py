@@ -1,4 +1,4 @@
-"""The one shape normalisation used for learning and metrics (DESIGN.md section 4).
+"""The one shape normalisation used for learning and metrics (docs/design.md section 4).
 
 Bounding-box centre at the origin, longest side 1, so every shape lies in the unit cube
 [-0.5, 0.5]^3. The transform is ``x' = (x - centre) * scale``; it is returned so that side data

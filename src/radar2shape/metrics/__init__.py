@@ -1,4 +1,4 @@
-"""Shared metrics (DESIGN.md section 6; docs/metrics.md): one definition for every model.
+"""Shared metrics (docs/design.md section 6; docs/metrics.md): one definition for every model.
 
 - ``functional``: per-sample Chamfer-L2, F-score and IoU on point sets and occupancy labels;
 - ``scoring``: a model's ``Reconstruction`` -> those scores (sampling, containment, worst values);

@@ -1,4 +1,4 @@
-"""Per-sample shape metrics (DESIGN.md section 6): the one definition every model is scored by.
+"""Per-sample shape metrics (docs/design.md section 6): the one definition every model is scored by.
 
 Coordinates are the normalised frame (unit cube [-0.5, 0.5]^3, longest side 1). Degenerate
 inputs (no points, non-finite values) score the worst value instead of raising, so a broken

@@ -1,4 +1,4 @@
-"""Roll-symmetric metrics: IoU-S, IoU-R and MATCH-S (DESIGN.md section 6; docs/rollsym.md).
+"""Roll-symmetric metrics: IoU-S, IoU-R and MATCH-S (docs/design.md section 6; docs/rollsym.md).
 
 The paper does not publish exact definitions, so these are ours, fixed here and tested on
 hand-computed cases. All work on (r, z) profiles in normalised coordinates (unit cube, so r <= 0.5

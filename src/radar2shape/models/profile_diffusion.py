@@ -178,7 +178,7 @@ class ProfileModel(ReconstructionModel):
 
 
 class ProfileUNetDiffusion(ProfileModel):
-    """DDPM over profile parameters with a 1D U-Net over aspect as the denoiser (DESIGN.md section 2).
+    """DDPM over profile parameters with a 1D U-Net over aspect as the denoiser (docs/design.md section 2).
 
     Denoiser, for a noisy normalised profile ``h_t [B, P, 2]`` and radar ``R [B, A, F]``:
       1. ``h_t`` flattened to ``2P`` -> one Linear + ReLU to ``profile_channels * A`` -> reshaped

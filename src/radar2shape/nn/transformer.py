@@ -1,7 +1,7 @@
 """A pre-norm Transformer whose blocks are conditioned on a vector (the diffusion timestep).
 
 Attention keeps separate ``q_proj``, ``k_proj`` and ``v_proj`` linear layers (no fused qkv) so
-that LoRA can wrap the query and value projections by name (the paper's fine-tuning, DESIGN.md 2).
+that LoRA can wrap the query and value projections by name (the paper's fine-tuning, docs/design.md section 2).
 Conditioning is adaptive LayerNorm with zero-initialised gates (adaLN-Zero, Peebles & Xie 2023):
 every block starts as the identity and the timestep scales/shifts every normalised activation,
 which conditions more strongly than adding the embedding to the input tokens once.

@@ -1,6 +1,6 @@
 """A timestep-conditioned 1D U-Net over a sequence axis (the aspect angle of a roll-symmetric radar).
 
-The roll-symmetric denoiser (DESIGN.md section 2) convolves along aspect, with the radar's
+The roll-symmetric denoiser (docs/design.md section 2) convolves along aspect, with the radar's
 frequencies and the encoded noisy profile as channels. Each residual block adds a projection of the
 timestep embedding to its feature maps (the DDPM recipe, Ho et al. 2020), so every resolution knows
 the noise level. Lengths that are not a multiple of ``2**depth`` are zero-padded and cropped back.

@@ -1,6 +1,6 @@
 """Radar simulation: physical optics on triangle meshes, grids, noise, masks and response files.
 
-Conventions (DESIGN.md section 4): metres, hertz, radians; u = (sin a cos p, sin a sin p, cos a)
+Conventions (docs/design.md section 4): metres, hertz, radians; u = (sin a cos p, sin a sin p, cos a)
 points toward the radar; S is complex with |S|^2 the monostatic RCS in m^2. docs/radar.md has
 the formulas, the accuracy checks and the benchmark.
 """

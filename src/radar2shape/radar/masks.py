@@ -1,4 +1,4 @@
-"""Partial observability: which (aspect, roll) cells the radar saw (DESIGN.md section 2).
+"""Partial observability: which (aspect, roll) cells the radar saw (docs/design.md section 2).
 
 A mask is bool [A, R], True = observed, the product of one contiguous window per axis. The
 aspect window never wraps (aspect runs 0..pi); the roll window may wrap past 2 pi because roll

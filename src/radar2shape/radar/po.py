@@ -1,5 +1,5 @@
 """Physical-optics kernel: exact triangle integrals summed over facets for many directions and
-uniformly spaced wavenumbers at once (DESIGN.md section 5; derivations in docs/radar.md).
+uniformly spaced wavenumbers at once (docs/design.md section 5; derivations in docs/radar.md).
 
 For one facet seen from u, with p_m = u.e_m (p_0 + p_1 + p_2 = 0) and E_i = exp(2jk u.r_i),
 the symmetric closed form is

@@ -1,4 +1,4 @@
-"""dB conversion and measurement noise on complex responses (DESIGN.md section 2)."""
+"""dB conversion and measurement noise on complex responses (docs/design.md section 2)."""
 
 from __future__ import annotations
 
