@@ -7,7 +7,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 export WANDB_SILENT := true
 
-CONFIG ?= conf/experiment/toy_sphere.yaml
+CONFIG ?= conf/trainer/cpu.yaml conf/experiment/toy_sphere.yaml  # layered: each file becomes a --config
 GRID ?= table1
 DATA_CONFIG ?= conf/data/parts.yaml
 DATA_DIR ?= data/parts
@@ -33,27 +33,28 @@ test: install ## Run the default test suite (not slow)
 test-full: install ## Run every test, slow ones included
 	WANDB_MODE=disabled $(PY) -m pytest -q
 
-demo: install ## Build a tiny dataset, train and test the default models on CPU, write reports/demo/
-	$(PY) scripts/demo.py --out reports/demo
+demo: install ## Build a tiny dataset, train and test the default models on CPU, write reports/demo/ (conf/grid/demo.yaml)
+	$(VENV)/bin/radar2shape sweep demo
+	$(VENV)/bin/radar2shape report --grid demo
 
 data: install ## Build the default dataset (DATA_CONFIG=, DATA_DIR=, WORKERS=)
 	$(VENV)/bin/radar2shape build-data --config $(DATA_CONFIG) --out $(DATA_DIR) --workers $(WORKERS)
 
-fit: install ## Train with the Lightning CLI: make fit CONFIG=conf/experiment/NAME.yaml
-	$(VENV)/bin/radar2shape fit --config $(CONFIG)
+fit: install ## Train: make fit CONFIG="conf/trainer/cpu.yaml conf/callbacks/shape_metrics.yaml conf/experiment/NAME.yaml"
+	$(VENV)/bin/radar2shape fit $(foreach c,$(CONFIG),--config $(c))
 
 test-model: install ## Test a model: make test-model CONFIG=... CKPT=path/to.ckpt
-	$(VENV)/bin/radar2shape test --config $(CONFIG) $(if $(CKPT),--ckpt_path $(CKPT))
+	$(VENV)/bin/radar2shape test $(foreach c,$(CONFIG),--config $(c)) $(if $(CKPT),--ckpt_path $(CKPT))
 
-sweep: install ## Run a config grid: make sweep GRID=table1 (conf/grid/GRID.yaml)
-	@test -f conf/grid/$(GRID).yaml || { echo "error: conf/grid/$(GRID).yaml not found (grids land with issues #8 and #9; see README Roadmap)"; exit 2; }
-	$(PY) -m radar2shape.sweep conf/grid/$(GRID).yaml
+sweep: install ## Run a config grid and write its report: make sweep GRID=table1 (conf/grid/GRID.yaml)
+	$(VENV)/bin/radar2shape sweep $(GRID)
 
-report: install ## Collect finished runs into tables and figures: make report GRID=table1 (or rollsym: Table 2 layout)
+report: install ## Collect finished runs into the grid's report layout: make report GRID=table1 (rollsym: Table 2)
 	$(VENV)/bin/radar2shape report --grid $(GRID)
 
 monocone: install ## Zero-shot monocone experiment on simulated measurements -> reports/monocone/ (needs runs/rollsym and a Radar2Shape Stage 2)
 	$(PY) scripts/monocone_experiment.py --table1-dir runs/table1
+	$(VENV)/bin/radar2shape report --grid monocone
 
 bench: install ## Run the speed benchmarks under bench/
 	@for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

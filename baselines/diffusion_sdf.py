@@ -27,7 +27,7 @@ class DiffusionSDF(RadarDiffusion):
     """Single-latent radar-conditional latent diffusion.
 
     Args:
-        radar_blocks: number J of frequency blocks, i.e. radar tokens (``n_freq`` divisible by J).
+        radar_blocks: number J of frequency blocks, i.e. radar tokens (``num_freq`` divisible by J).
         **kwargs: the arguments of :class:`RadarDiffusion` (``stage1_ckpt`` must hold a one-level SDFVAE).
     """
 
@@ -39,7 +39,7 @@ class DiffusionSDF(RadarDiffusion):
                 "train it with conf/model/diffusion_sdf_vae.yaml"
             )
         hp = self.hparams
-        self.radar_encoder = RadarBlockEncoder(hp.n_freq, int(radar_blocks), hp.dim, hp.encoder_depth, hp.encoder_width)
+        self.radar_encoder = RadarBlockEncoder(hp.num_freq, int(radar_blocks), hp.dim, hp.encoder_depth, hp.encoder_width)
         self.attn_mask = None  # every token sees every other one
 
     def network_output(self, radar_tokens: torch.Tensor, h_t: torch.Tensor, t: torch.Tensor) -> torch.Tensor:

@@ -5,7 +5,7 @@ What we took from the paper, as far as it is known to us: the radar of a roll-sy
 a sequence over aspect angle whose tokens are the per-aspect frequency responses; a Transformer
 encoder with positional encoding reads the sequence, and the shape comes out in one forward pass
 (no generative sampling). What we decided where the details are not available (docs/rollsym.md):
-- token = one aspect's frequency vector (normalised dB) -> Linear to ``d_model``, plus the
+- token = one aspect's frequency vector (normalised dB) -> Linear to ``dim``, plus the
   sine-cosine encoding of the aspect index (``nn.positional``), the same code the diffusion
   models use for positions;
 - unobserved aspects are removed as attention keys (key padding), so a masked aspect never
@@ -38,7 +38,7 @@ class InvRT(ProfileModel):
         num_aspect: int,
         num_freq: int,
         profile_points: int = 16,
-        d_model: int = 128,
+        dim: int = 128,
         n_layers: int = 4,
         n_heads: int = 4,
         mlp_ratio: float = 4.0,
@@ -54,11 +54,11 @@ class InvRT(ProfileModel):
         self.save_hyperparameters()
         self.num_aspect, self.num_freq, self.profile_points = num_aspect, num_freq, profile_points
         self.mesh_segments = mesh_segments
-        self.embed = nn.Linear(num_freq, d_model)
-        self.register_buffer("aspect_code", sinusoidal_embedding(torch.arange(num_aspect), d_model), persistent=False)
-        self.queries = nn.Parameter(0.02 * torch.randn(profile_points, d_model))
-        self.encoder = Transformer(d_model, n_layers, n_heads, mlp_ratio, dropout)
-        self.head = nn.Linear(d_model, 2)
+        self.embed = nn.Linear(num_freq, dim)
+        self.register_buffer("aspect_code", sinusoidal_embedding(torch.arange(num_aspect), dim), persistent=False)
+        self.queries = nn.Parameter(0.02 * torch.randn(profile_points, dim))
+        self.encoder = Transformer(dim, n_layers, n_heads, mlp_ratio, dropout)
+        self.head = nn.Linear(dim, 2)
 
     def forward(self, radar: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         """Normalised profile ``[B, P, 2]`` from radar ``[B, A, F]`` and observed aspects ``mask [B, A]``."""
@@ -73,5 +73,5 @@ class InvRT(ProfileModel):
         channels = self.radar_input(batch)  # checked [B, F + 1, A]: radar zeroed where masked, then mask
         return self(channels[:, :-1].transpose(1, 2), channels[:, -1] > 0.5)
 
-    def training_loss(self, batch: dict) -> torch.Tensor:
-        return LOSSES[self.hparams.loss](self.predict_normalised(batch), self.target_profiles(batch))
+    def losses(self, batch: dict) -> dict[str, torch.Tensor]:
+        return {"loss": LOSSES[self.hparams.loss](self.predict_normalised(batch), self.target_profiles(batch))}

@@ -25,7 +25,6 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from baselines.loss_steps import LossDictSteps
 from baselines.point_losses import chamfer_l2, nearest
 from baselines.radar_features import RadarFeatures
 from radar2shape.models.base import Reconstruction, ReconstructionModel
@@ -51,25 +50,27 @@ class ShapeContext:
         return ShapeContext([m[i : i + 1] for m in self.maps], self.z[i : i + 1], self.coarse[i : i + 1], self.cloud[i : i + 1])
 
 
-class LIST(LossDictSteps, ReconstructionModel):
+class LIST(ReconstructionModel):
     """Coarse cloud + spatially transformed local radar features -> SDF; meshes by marching cubes.
 
     Args (primitive, so checkpoints load with ``torch.load(weights_only=True)``):
-        n_freq: radar frequencies F. feature_dim: global radar feature width.
+        num_freq: radar frequencies F. feature_dim: global radar feature width.
         encoder_depth, encoder_width: ResNet depth (18/34/50/101/152) and width multiplier.
         coarse_points: size P of the coarse cloud. cloud_dim: width of its PointNet feature.
         local_dim: width of the local radar features; n_offsets: K sampling offsets per query;
             offset_scale: largest offset, in grid_sample units (2 = the whole axis).
-        hidden, n_hidden: width and hidden layers of the decoder MLP (the others use 2).
+        mlp_hidden, mlp_layers: width and hidden layers of the decoder MLP (the others use 2).
         truncation: SDF truncation of the L1 loss (0 = none). w_coarse: weight of the coarse Chamfer.
         lr, weight_decay: Adam settings.
         mesh_resolution, mesh_bound, mesh_batch_points: marching-cubes grid of :meth:`reconstruct`
             over ``[-mesh_bound, mesh_bound]^3`` and queries per decoder call.
     """
 
+    optimizer_class = torch.optim.Adam
+
     def __init__(
         self,
-        n_freq: int = 64,
+        num_freq: int = 64,
         feature_dim: int = 256,
         encoder_depth: int = 18,
         encoder_width: float = 1.0,
@@ -78,8 +79,8 @@ class LIST(LossDictSteps, ReconstructionModel):
         local_dim: int = 64,
         n_offsets: int = 4,
         offset_scale: float = 0.5,
-        hidden: int = 256,
-        n_hidden: int = 4,
+        mlp_hidden: int = 256,
+        mlp_layers: int = 4,
         truncation: float = 0.1,
         w_coarse: float = 1.0,
         lr: float = 1e-3,
@@ -90,13 +91,13 @@ class LIST(LossDictSteps, ReconstructionModel):
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
-        self.radar = RadarFeatures(n_freq, feature_dim, encoder_depth, encoder_width)
-        self.coarse = MLP(feature_dim, hidden, 2, 3 * coarse_points)
+        self.radar = RadarFeatures(num_freq, feature_dim, encoder_depth, encoder_width)
+        self.coarse = MLP(feature_dim, mlp_hidden, 2, 3 * coarse_points)
         self.cloud_encoder = MLP(3, cloud_dim, 2, cloud_dim)
         context_dim = 3 + feature_dim + cloud_dim + 4  # q, z, cloud feature, nearest coarse offset + distance
-        self.localise = MLP(context_dim, hidden, 2, 3 * n_offsets)  # (dx, dy, logit) per offset
+        self.localise = MLP(context_dim, mlp_hidden, 2, 3 * n_offsets)  # (dx, dy, logit) per offset
         self.project = nn.ModuleList(nn.Conv2d(c, local_dim, 1) for c in self.radar.map_channels)
-        self.decoder = MLP(context_dim + local_dim, hidden, n_hidden, 1)
+        self.decoder = MLP(context_dim + local_dim, mlp_hidden, mlp_layers, 1)
 
     # ---- shape context -----------------------------------------------------------------------
     def context(self, radar: torch.Tensor, mask: torch.Tensor) -> ShapeContext:

@@ -24,7 +24,6 @@ import math
 import torch
 from torch import nn
 
-from baselines.loss_steps import LossDictSteps
 from baselines.point_losses import chamfer_l2, nearest
 from baselines.radar_features import RadarFeatures
 from baselines.template_mesh import icosphere, sample_faces, to_trimesh, unique_edges
@@ -32,34 +31,36 @@ from radar2shape.models.base import Reconstruction, ReconstructionModel
 from radar2shape.nn.mlp import MLP
 
 
-class TMNet(LossDictSteps, ReconstructionModel):
+class TMNet(ReconstructionModel):
     """Template-sphere deformation with face pruning between two deformation stages.
 
     Args (primitive, so checkpoints load with ``torch.load(weights_only=True)``):
-        n_freq: radar frequencies F. feature_dim: global radar feature width.
+        num_freq: radar frequencies F. feature_dim: global radar feature width.
         encoder_depth, encoder_width: ResNet depth (18/34/50/101/152) and width multiplier.
         sphere_level, sphere_radius: icosphere subdivisions (4: 2,562 vertices) and radius.
-        hidden, n_hidden: width and hidden layers of the deformation / error MLPs.
+        mlp_hidden, mlp_layers: width and hidden layers of the deformation / error MLPs.
         prune_threshold: faces whose estimated error (mean distance to the ground truth,
             unit-cube units) exceeds it are removed. min_keep: fraction of faces always kept.
-        n_samples: surface samples per stage for the Chamfer loss.
+        chamfer_samples: surface samples per stage for the Chamfer loss.
         w_edge, w_normal, w_error: loss weights (Chamfer has weight 1).
         lr, weight_decay: Adam settings.
     """
 
+    optimizer_class = torch.optim.Adam
+
     def __init__(
         self,
-        n_freq: int = 64,
+        num_freq: int = 64,
         feature_dim: int = 256,
         encoder_depth: int = 18,
         encoder_width: float = 1.0,
         sphere_level: int = 4,
         sphere_radius: float = 0.3,
-        hidden: int = 256,
-        n_hidden: int = 3,
+        mlp_hidden: int = 256,
+        mlp_layers: int = 3,
         prune_threshold: float = 0.03,
         min_keep: float = 0.5,
-        n_samples: int = 2048,
+        chamfer_samples: int = 2048,
         w_edge: float = 0.05,
         w_normal: float = 1e-3,
         w_error: float = 1.0,
@@ -68,14 +69,14 @@ class TMNet(LossDictSteps, ReconstructionModel):
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
-        self.radar = RadarFeatures(n_freq, feature_dim, encoder_depth, encoder_width)
+        self.radar = RadarFeatures(num_freq, feature_dim, encoder_depth, encoder_width)
         vertices, faces = icosphere(sphere_level, sphere_radius)
         self.register_buffer("template", vertices, persistent=False)
         self.register_buffer("faces", faces, persistent=False)
         self.register_buffer("edges", unique_edges(faces), persistent=False)
-        self.deform1 = MLP(3 + feature_dim, hidden, n_hidden, 3)
-        self.deform2 = MLP(3 + feature_dim, hidden, n_hidden, 3)
-        self.error = MLP(3 + feature_dim, hidden, n_hidden, 1)
+        self.deform1 = MLP(3 + feature_dim, mlp_hidden, mlp_layers, 3)
+        self.deform2 = MLP(3 + feature_dim, mlp_hidden, mlp_layers, 3)
+        self.error = MLP(3 + feature_dim, mlp_hidden, mlp_layers, 1)
         for head in (self.deform1, self.deform2):  # start from the template: zero offsets
             nn.init.zeros_(head.net[-1].weight)
             nn.init.zeros_(head.net[-1].bias)
@@ -122,8 +123,8 @@ class TMNet(LossDictSteps, ReconstructionModel):
         hp = self.hparams
         d2_1, near_1 = nearest(out["v1"].detach(), gt)
         near_2 = nearest(out["v2"].detach(), gt)[1]
-        chamfer1 = chamfer_l2(sample_faces(out["v1"], self.faces, hp.n_samples), gt).mean()
-        chamfer2 = chamfer_l2(sample_faces(out["v2"], self.faces, hp.n_samples, out["keep"].float()), gt).mean()
+        chamfer1 = chamfer_l2(sample_faces(out["v1"], self.faces, hp.chamfer_samples), gt).mean()
+        chamfer2 = chamfer_l2(sample_faces(out["v2"], self.faces, hp.chamfer_samples, out["keep"].float()), gt).mean()
         edge = self.edge_loss(out["v1"]) + self.edge_loss(out["v2"])
         normal = self.normal_loss(out["v1"], near_1, gt_normals) + self.normal_loss(out["v2"], near_2, gt_normals)
         error = (out["error"] - self.face_distance(d2_1)).square().mean()

@@ -73,12 +73,12 @@ def main() -> None:
             model = cpu_config_model(Path(folder))
     model.eval()
     a, r = 16, 16
-    batch = {"radar": torch.randn(1, a, r, model.hparams.n_freq), "radar_mask": torch.ones(1, a, r, dtype=torch.bool)}
-    model.reconstruct_with_uncertainty(batch, samples=1, steps=args.steps, resolution=16)  # warm-up
+    batch = {"radar": torch.randn(1, a, r, model.hparams.num_freq), "radar_mask": torch.ones(1, a, r, dtype=torch.bool)}
+    model.reconstruct_with_uncertainty(batch, num_samples=1, steps=args.steps, resolution=16)  # warm-up
     sample_s, total_s, cpu_s, faces = [], [], [], 0
     for _ in range(args.repeats):
         start, cpu_start = time.perf_counter(), time.process_time()
-        latents = model.sample_latents(batch, samples=1, steps=args.steps)
+        latents = model.sample_latents(batch, num_samples=1, steps=args.steps)
         sampled = time.perf_counter()
         mesh, _ = model.mean_mesh(latents[0], args.resolution)
         total_s.append(time.perf_counter() - start)

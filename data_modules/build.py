@@ -28,7 +28,7 @@ from data_modules.manifest import missing_tasks, write_manifest
 from data_modules.record_builder import RecordBuilder
 from data_modules.records import record_path, skip_path, write_json, write_record
 from radar2shape.errors import UserInputError
-from radar2shape.geometry.families import ShapeTask, make_family
+from radar2shape.geometry.families import ShapeTask
 
 CONFIG_FILE = "build_config.json"
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
@@ -125,11 +125,11 @@ def build_dataset(config: BuildConfig, root: str | Path, workers: int = 1, shard
     index, count = shard
     if not 0 <= index < count:
         raise UserInputError(f"--shard: expected i/n with 0 <= i < n, got {index}/{count}")
+    family = config.make_family()
+    tasks = family.plan(config.num, config.splits, config.seed)  # before anything is written
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     _check_config(root, config)
-    family = make_family(config.family, config.family_options)
-    tasks = family.plan(config.num, config.splits, config.seed)
     mine = tasks[index::count]
     todo = missing_tasks(root, mine)
     counts = {"built": 0, "skipped": 0}
@@ -145,6 +145,6 @@ def build_dataset(config: BuildConfig, root: str | Path, workers: int = 1, shard
 def finalize(config: BuildConfig, root: str | Path) -> dict:
     """Write the manifest of a finished build (all shards done); errors if records are missing."""
     root = Path(root)
+    family = config.make_family()
     _check_config(root, config)
-    family = make_family(config.family, config.family_options)
     return write_manifest(root, config, family, family.plan(config.num, config.splits, config.seed))

@@ -1,22 +1,40 @@
-"""Data build configs (``conf/data/*.yaml``): parsing, checking, and the exact form kept in manifests.
+"""Data build configs (``conf/data/*.yaml``): the schema, its checks, and the exact form kept in manifests.
+
+The file is read with :func:`radar2shape.structured_config.load_structured`, so unknown keys, wrong
+types and YAML errors are one line naming the file and key. Every other check sits in
+``BuildConfig.__post_init__`` and runs before a build writes anything, so a bad config never
+leaves an output folder behind.
 
 The ``radar`` section is either a path to a radar grid YAML (``conf/radar/default.yaml``, the same
 keys ``RadarGrid.from_config`` reads) or those keys inline; ``{config: PATH, key: value}`` takes
-the file and overrides keys. Relative paths resolve against the working directory first, then
-against the folders above the data config (so both ``make data`` and other working directories
-work).
+the file and overrides keys. Relative paths (``radar``, ``family_options.root``) resolve against
+the working directory first, then against the folders above the data config (so both ``make data``
+and other working directories work).
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
+import inspect
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-
-import yaml
+from typing import Any, Optional
 
 from radar2shape.errors import UserInputError
 from radar2shape.geometry.prepare import MeshConfig
 from radar2shape.geometry.sampling import SamplingConfig
+from radar2shape.structured_config import read_yaml, structured
+
+DEFAULT_RADAR = "conf/radar/default.yaml"
+
+
+@dataclass
+class SimulatorOptions:
+    """Keys the ``simulator`` section may set (unset ones keep ``simulate``'s defaults)."""
+
+    method: Optional[str] = None  # "po" (default) or "sbr"
+    max_bounces: Optional[int] = None
+    rays_per_wavelength: Optional[float] = None
+    shadowing: Optional[bool] = None
 
 
 @dataclass
@@ -24,15 +42,61 @@ class BuildConfig:
     """Everything that determines a built dataset; equal configs give byte-equal records."""
 
     family: str
-    family_options: dict = field(default_factory=dict)
+    family_options: dict[str, Any] = field(default_factory=dict)
     seed: int = 0
-    num: int | None = None  # shapes in all splits (procedural: required; folder: optional cap)
-    splits: dict = field(default_factory=lambda: {"train": 0.8, "val": 0.1, "test": 0.1})
+    num: Optional[int] = None  # shapes in all splits (procedural: required; folder: optional cap)
+    splits: dict[str, float] = field(default_factory=lambda: {"train": 0.8, "val": 0.1, "test": 0.1})
     mesh: MeshConfig = field(default_factory=MeshConfig)
     sampling: SamplingConfig = field(default_factory=SamplingConfig)
-    radar: dict = field(default_factory=dict)  # resolved RadarGrid.from_config keys
-    simulator: dict = field(default_factory=dict)  # simulate() options: method, max_bounces, ...
+    radar: dict[str, Any] = field(default_factory=dict)  # resolved RadarGrid.from_config keys
+    simulator: dict[str, Any] = field(default_factory=dict)  # simulate() options, only those set
     floor_db: float = -100.0  # dB floor of the radar statistics stored in the manifest
+
+    def __post_init__(self):
+        """The checks types cannot express, so that a build fails before it writes anything."""
+        from radar2shape.geometry.families import FAMILIES
+        from radar2shape.radar import RadarGrid
+
+        self.sampling = replace(self.sampling, sdf_near_sigmas=tuple(self.sampling.sdf_near_sigmas))
+        if self.family not in FAMILIES:
+            raise UserInputError(f"family: unknown family {self.family!r}; choose from {sorted(FAMILIES)}")
+        accepted = [name for name in inspect.signature(FAMILIES[self.family]).parameters if name != "self"]
+        unknown = sorted(set(self.family_options) - set(accepted))
+        if unknown:
+            raise UserInputError(f"family_options: unknown key(s) {unknown} for family {self.family!r}; "
+                                 f"expected some of {accepted}")
+        if self.num is not None and self.num < 1:
+            raise UserInputError(f"num: expected a positive number of shapes, got {self.num}")
+        if self.num is None and self.family != "folder":
+            raise UserInputError(f"'num' must be a positive number of shapes for family {self.family!r}")
+        bad_splits = sorted(set(self.splits) - {"train", "val", "test"})
+        if bad_splits or any(v < 0 for v in self.splits.values()) or sum(self.splits.values()) <= 0:
+            raise UserInputError(f"splits: expected train/val/test -> non-negative fractions with a positive sum, "
+                                 f"got {self.splits}")
+        for section, names in (("sampling", ("surface", "eval", "sdf", "occ")),
+                               ("mesh", ("face_budget", "remesh_resolution", "max_input_faces"))):
+            for name in names:
+                if getattr(getattr(self, section), name) < 1:
+                    raise UserInputError(f"{section}.{name}: expected a positive count, "
+                                         f"got {getattr(getattr(self, section), name)}")
+        if not 0.0 <= self.sampling.sdf_near_fraction <= 1.0 or self.sampling.padding < 0:
+            raise UserInputError("sampling: sdf_near_fraction must lie in [0, 1] and padding be >= 0")
+        if not self.sampling.sdf_near_sigmas or min(self.sampling.sdf_near_sigmas) <= 0:
+            raise UserInputError(f"sampling.sdf_near_sigmas: expected positive numbers, got {self.sampling.sdf_near_sigmas}")
+        options = structured(SimulatorOptions, self.simulator, "simulator")
+        if options.method not in (None, "po", "sbr"):
+            raise UserInputError(f"simulator.method: expected 'po' or 'sbr', got {options.method!r}")
+        try:
+            RadarGrid.from_config(self.radar)
+        except UserInputError as err:
+            raise UserInputError(f"radar: {err}") from None
+        self.make_family()  # option values, folder root
+
+    def make_family(self):
+        """The shape family this config builds from."""
+        from radar2shape.geometry.families import make_family
+
+        return make_family(self.family, self.family_options)
 
     def to_dict(self) -> dict:
         """Plain, JSON-ready form (tuples become lists), as stored in the manifest."""
@@ -47,24 +111,6 @@ def _jsonable(value):
     return value
 
 
-def _check_keys(values: dict, cls, prefix: str, where: str = "") -> None:
-    """Name the keys of ``values`` that dataclass ``cls`` has no field for (typos fail loudly)."""
-    known = {f.name for f in fields(cls)}
-    unknown = sorted(set(values) - known)
-    if unknown:
-        raise UserInputError(f"{prefix}unknown key(s) {unknown}{where}; expected some of {sorted(known)}")
-
-
-def _section(cls, values, name: str, source: str):
-    """Build dataclass ``cls`` from a mapping, naming unknown keys in the error."""
-    values = values or {}
-    if not isinstance(values, dict):
-        raise UserInputError(f"{source}: '{name}' must be a mapping, got {type(values).__name__}")
-    _check_keys(values, cls, f"{source}: ", f" in '{name}'")
-    values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-    return cls(**values)
-
-
 def resolve_path(path: str, anchor: Path) -> Path:
     """``path`` as given if it exists, else relative to ``anchor`` or one of its parents."""
     candidate = Path(path).expanduser()
@@ -77,30 +123,20 @@ def resolve_path(path: str, anchor: Path) -> Path:
 
 
 def _radar_section(value, source: Path) -> dict:
+    """The radar grid keys: a file, inline keys, or a file with overrides."""
     if isinstance(value, str):
         value = {"config": value}
     if not isinstance(value, dict) or not value:
-        raise UserInputError(f"{source}: 'radar' must be a path to a radar YAML or a mapping of its keys")
+        raise UserInputError(f"{source}: key 'radar': expected a path to a radar YAML or a mapping of its keys")
     value = dict(value)
     if "config" in value:
-        path = resolve_path(value.pop("config"), source.parent)
+        path = resolve_path(str(value.pop("config")), source.parent)
         if not path.is_file():
-            raise UserInputError(f"{source}: radar config {path} not found")
-        value = {**(yaml.safe_load(path.read_text()) or {}), **value}
-    return value
-
-
-SIMULATOR_KEYS = {"method", "max_bounces", "rays_per_wavelength", "shadowing"}
-
-
-def _simulator_section(value, source: Path) -> dict:
-    """Options passed to ``simulate`` (empty = physical optics with shadowing)."""
-    value = dict(value or {})
-    unknown = sorted(set(value) - SIMULATOR_KEYS)
-    if unknown:
-        raise UserInputError(f"{source}: unknown key(s) {unknown} in 'simulator'; expected some of {sorted(SIMULATOR_KEYS)}")
-    if value.get("method", "po") not in ("po", "sbr"):
-        raise UserInputError(f"{source}: simulator.method must be 'po' or 'sbr', got {value['method']!r}")
+            raise UserInputError(f"{source}: key 'radar': radar config {path} not found")
+        grid = read_yaml(path) or {}
+        if not isinstance(grid, dict):
+            raise UserInputError(f"{path}: expected a mapping of radar grid keys")
+        value = {**grid, **value}
     return value
 
 
@@ -109,37 +145,19 @@ def load_build_config(path: str | Path, num: int | None = None) -> BuildConfig:
     path = Path(path)
     if not path.is_file():
         raise UserInputError(f"--config: {path} not found (see conf/data/ for examples)")
-    raw = yaml.safe_load(path.read_text()) or {}
+    raw = read_yaml(path)
     if not isinstance(raw, dict):
-        raise UserInputError(f"{path}: expected a mapping of config keys")
-    _check_keys(raw, BuildConfig, f"{path}: ")
-    if "family" not in raw:
-        raise UserInputError(f"{path}: missing 'family' (frusta, parts or folder)")
-    config = BuildConfig(
-        family=raw["family"],
-        family_options=dict(raw.get("family_options") or {}),
-        seed=int(raw.get("seed", 0)),
-        num=num if num is not None else raw.get("num"),
-        splits=dict(raw.get("splits") or BuildConfig.__dataclass_fields__["splits"].default_factory()),
-        mesh=_section(MeshConfig, raw.get("mesh"), "mesh", str(path)),
-        sampling=_section(SamplingConfig, raw.get("sampling"), "sampling", str(path)),
-        radar=_radar_section(raw.get("radar", "conf/radar/default.yaml"), path),
-        simulator=_simulator_section(raw.get("simulator"), path),
-        floor_db=float(raw.get("floor_db", -100.0)),
-    )
-    if "root" in config.family_options:
-        config.family_options["root"] = str(resolve_path(config.family_options["root"], path.parent))
-    if config.family != "folder" and (config.num is None or int(config.num) <= 0):
-        raise UserInputError(f"{path}: 'num' must be a positive number of shapes for family {config.family!r}")
-    bad_splits = sorted(set(config.splits) - {"train", "val", "test"})
-    if bad_splits or any(float(v) < 0 for v in config.splits.values()):
-        raise UserInputError(f"{path}: 'splits' maps train/val/test to non-negative fractions, got {config.splits}")
-    return config
+        raise UserInputError(f"{path}: expected a mapping of config keys, got {type(raw).__name__}")
+    raw = dict(raw)
+    if num is not None:
+        raw["num"] = num
+    raw["radar"] = _radar_section(raw.get("radar", DEFAULT_RADAR), path)
+    options = raw.get("family_options")
+    if isinstance(options, dict) and isinstance(options.get("root"), str):
+        raw["family_options"] = {**options, "root": str(resolve_path(options["root"], path.parent))}
+    return structured(BuildConfig, raw, str(path))
 
 
 def config_from_dict(data: dict) -> BuildConfig:
-    """Inverse of ``BuildConfig.to_dict`` (used by workers and when reading manifests)."""
-    data = dict(data)
-    data["mesh"] = _section(MeshConfig, data.get("mesh"), "mesh", "build config")
-    data["sampling"] = _section(SamplingConfig, data.get("sampling"), "sampling", "build config")
-    return BuildConfig(**data)
+    """Inverse of ``BuildConfig.to_dict`` (used by the build's worker processes)."""
+    return structured(BuildConfig, data, "build config")

@@ -1,23 +1,23 @@
 """LightningDataModules over built datasets: ``ShapeDataModule`` (3D) and ``ProfileDataModule``.
 
-Both read the manifest at construction, so ``class_names``, ``num_classes`` and ``radar_shape``
-are known before a model is built (LightningCLI can link them). Options (see docs/data.md):
+Both read the manifest at construction, so ``class_names``, ``num_classes``, ``radar_shape`` and
+``radar_spec`` (grid + dB normalisation, which the model stores in its checkpoints) are known
+before a model is built (LightningCLI can link them). Options (see docs/data.md):
 observability and noise per split, dB floor, point subset sizes per split.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-import lightning as L
 from torch.utils.data import DataLoader
 
 from data_modules.datasets import EpochSampler, ProfileDataset, RecordDataset, RecordSet
-from data_modules.manifest import radar_db_stats, read_manifest
+from data_modules.manifest import dataset_radar_spec, read_manifest
 from data_modules.radar_transform import RadarTransform
-from data_modules.records import write_json
+from radar2shape.datamodule import ReconstructionDataModule
 from radar2shape.errors import UserInputError
+from radar2shape.radar.spec import RadarSpec
 
 DEFAULT_POINTS = {
     "train": {"surface": 2048, "sdf": 8192},
@@ -26,7 +26,7 @@ DEFAULT_POINTS = {
 }
 
 
-class ShapeDataModule(L.LightningDataModule):
+class ShapeDataModule(ReconstructionDataModule):
     """Batches of 3D radar ``[B, A, R, F]`` with shape targets (docs/design.md section 10, batch keys).
 
     Args:
@@ -40,6 +40,7 @@ class ShapeDataModule(L.LightningDataModule):
     """
 
     dataset_class = RecordDataset
+    roll_symmetric = False
 
     def __init__(self, root: str = "data/parts", batch_size: int = 16, num_workers: int = 0, seed: int = 0,
                  floor_db: float = -100.0, observability: str = "partial",
@@ -53,30 +54,18 @@ class ShapeDataModule(L.LightningDataModule):
         self.class_names: list[str] = list(self.manifest["classes"])
         self.num_classes = len(self.class_names)
         self.points = {split: {**DEFAULT_POINTS[split], **((points or {}).get(split) or {})} for split in DEFAULT_POINTS}
-        self.stats = self._radar_stats(floor_db)
+        self._spec = dataset_radar_spec(self.root, self.manifest, float(floor_db), self.roll_symmetric)
         self.datasets: dict[str, RecordDataset] = {}
 
     @property
-    def radar_shape(self) -> tuple[int, ...]:
-        """Shape of one radar input: ``(A, R, F)``."""
-        radar = self.manifest["radar"]
-        return len(radar["aspect_rad"]), len(radar["roll_rad"]), len(radar["freq_hz"])
+    def radar_spec(self) -> RadarSpec:
+        """The radar grid and train dB statistics at ``floor_db`` (aspect-only at roll 0 for profiles)."""
+        return self._spec
 
-    def _radar_stats(self, floor_db: float) -> dict:
-        """Train dB mean/std: from the manifest when its floor matches, else computed once and cached."""
-        stored = self.manifest.get("radar_stats")
-        if stored and stored["floor_db"] == floor_db:
-            return stored
-        cache = self.root / f"radar_stats_floor{floor_db:g}.json"
-        if cache.is_file():
-            return json.loads(cache.read_text())
-        train = self.train_records()
-        stats = radar_db_stats([train.path(i) for i in range(len(train))], floor_db)
-        try:
-            write_json(cache, stats)
-        except OSError:  # read-only dataset folder: keep the statistics in memory only
-            pass
-        return stats
+    @property
+    def radar_shape(self) -> tuple[int, ...]:
+        """Shape of one radar input: ``(A, R, F)`` (``(A, F)`` for roll-symmetric data)."""
+        return self.radar_spec.input_shape
 
     def records(self, split: str) -> RecordSet:
         """Raw records of ``split`` (lazy)."""
@@ -92,8 +81,7 @@ class ShapeDataModule(L.LightningDataModule):
         hp = self.hparams
         train = split == "train"
         return RadarTransform(
-            mean=self.stats["mean"], std=self.stats["std"], floor_db=hp.floor_db, observability=hp.observability,
-            keep=tuple(hp.train_keep) if train else hp.test_keep,
+            spec=self.radar_spec, observability=hp.observability, keep=tuple(hp.train_keep) if train else hp.test_keep,
             noise_db=hp.train_noise_db if train else hp.test_noise_db, mask_seed=hp.seed,
         )
 
@@ -135,6 +123,7 @@ class ProfileDataModule(ShapeDataModule):
     """Roll-symmetric batches: radar ``[B, A, F]`` at roll 0, mask ``[B, A]``, ``profile [B, P, 2]``."""
 
     dataset_class = ProfileDataset
+    roll_symmetric = True
 
     def __init__(self, root: str = "data/frusta", **kwargs):
         super().__init__(root, **kwargs)
@@ -142,9 +131,3 @@ class ProfileDataModule(ShapeDataModule):
             raise UserInputError(f"{self.root}: records have no profiles (family {self.manifest['family']!r}); "
                                  "ProfileDataModule needs a roll-symmetric family such as frusta")
         self.profile_points: int = self.manifest["profile_points"]
-
-    @property
-    def radar_shape(self) -> tuple[int, ...]:
-        """Shape of one radar input: ``(A, F)``."""
-        aspect, _, freq = super().radar_shape
-        return aspect, freq

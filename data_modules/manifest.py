@@ -2,7 +2,8 @@
 
 Written once every task of the build has a record or a skip marker (by the last shard to
 finish, or by ``build-data --finalize``), from what is on disk, so it is the same whichever
-shard, worker or resumed run produced the records.
+shard, worker or resumed run produced the records. :func:`dataset_radar_spec` turns a manifest
+into the :class:`~radar2shape.radar.spec.RadarSpec` models train on and store.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from data_modules.records import read_record, record_path, remove_stale_temps, s
 from radar2shape.errors import UserInputError
 from radar2shape.geometry.families import SPLITS, Family, ShapeTask
 from radar2shape.radar import to_db
+from radar2shape.radar.spec import RadarSpec
 
 FORMAT = "radar2shape-records/1"
 MANIFEST = "manifest.json"
@@ -97,3 +99,24 @@ def read_manifest(root: str | Path) -> dict:
     if manifest.get("format") != FORMAT:
         raise UserInputError(f"{path}: unknown dataset format {manifest.get('format')!r} (expected {FORMAT})")
     return manifest
+
+
+def train_db_stats(root: str | Path, manifest: dict, floor_db: float) -> dict:
+    """Train dB mean/std at ``floor_db``: the manifest's when its floor matches, else computed once and cached."""
+    stored = manifest.get("radar_stats")
+    if stored and stored["floor_db"] == floor_db:
+        return stored
+    cache = Path(root) / f"radar_stats_floor{floor_db:g}.json"
+    if cache.is_file():
+        return json.loads(cache.read_text())
+    stats = radar_db_stats([record_path(Path(root), "train", rid) for rid in manifest["splits"]["train"]], floor_db)
+    try:
+        write_json(cache, stats)
+    except OSError:  # read-only dataset folder: keep the statistics in memory only
+        pass
+    return stats
+
+
+def dataset_radar_spec(root: str | Path, manifest: dict, floor_db: float, roll_symmetric: bool = False) -> RadarSpec:
+    """The radar spec of a built dataset at ``floor_db`` (aspect-only at its first roll when ``roll_symmetric``)."""
+    return RadarSpec.from_manifest(manifest["radar"], train_db_stats(root, manifest, floor_db), roll_symmetric)

@@ -1,8 +1,9 @@
-"""From a stored complex response to the network's radar input: noise, dB, normalise, mask.
+"""From a stored complex response to the network's radar input: noise, dB, mask, then the spec.
 
 Order follows the paper: complex Gaussian noise is added to F before the dB conversion; the dB
-image is standardised with the train-set statistics; cells outside the observed window are
-set to 0 (the mean after standardisation) and reported in the mask.
+image is standardised by the dataset's :class:`~radar2shape.radar.spec.RadarSpec` (the same
+``normalise`` inference uses), which sets cells outside the observed window to 0 (the mean
+after standardisation); the mask reports them.
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from radar2shape.errors import UserInputError
-from radar2shape.radar import add_noise, fixed_window_mask, random_window_mask, to_db
+from radar2shape.radar import add_noise, fixed_window_mask, random_window_mask
+from radar2shape.radar.spec import RadarSpec
 
 NoiseLevel = float | tuple[float, float] | list[float] | None
 
@@ -29,12 +31,13 @@ def draw_noise_level(level: NoiseLevel, rng: np.random.Generator) -> float | Non
 
 @dataclass(frozen=True)
 class RadarTransform:
-    """One split's radar preprocessing (``keep`` is a ``(min, max)`` range to draw windows from,
-    or a fixed fraction per axis with a per-sample fixed seed)."""
+    """One split's radar preprocessing: noise and observation windows; ``spec`` normalises.
 
-    mean: float
-    std: float
-    floor_db: float = -100.0
+    ``keep`` is a ``(min, max)`` range to draw windows from, or a fixed fraction per axis with a
+    per-sample fixed seed.
+    """
+
+    spec: RadarSpec
     observability: str = "partial"  # "full": every cell observed
     keep: float | tuple[float, float] = 0.3
     noise_db: NoiseLevel = None
@@ -58,7 +61,6 @@ class RadarTransform:
         level = draw_noise_level(self.noise_db, rng)
         if level is not None:
             response = add_noise(response, level, rng)
-        radar = ((to_db(response, self.floor_db) - self.mean) / self.std).astype(np.float32)
+        db = self.spec.to_db(response)
         mask = self.mask(response.shape[0], response.shape[1], rng, index)
-        radar[~mask] = 0.0
-        return radar, mask
+        return self.spec.normalise(db, mask), mask

@@ -1,4 +1,4 @@
-"""Zero-shot monocone experiment (issue 11, docs/measured.md): simulated "measurements" -> trained models.
+"""Zero-shot monocone experiment (docs/measured.md): simulated "measurements" -> trained models -> scores.
 
 The paper reconstructs a measured monoconic target with a model trained on simulated data. We
 have no chamber, so each target is a blunted cone (``monocone`` family, options from
@@ -8,11 +8,13 @@ electromagnetic scaling maps onto the models' 8-12 GHz, complex noise, then writ
 generic CSV format (``radar.measured``): "full" has every aspect, "partial" only one contiguous
 window keeping ``--keep`` of them (the rows of the other aspects are absent). Each file goes
 through the same path as ``radar2shape reconstruct --measured FILE --format csv --size-m S``
-into every model of ``MODELS`` (checkpoints from ``runs/``; full-observability runs for the full
-files, partial-observability runs for the partial files, as in Table 1), and is scored against
-the normalised ground truth with the project's metrics (Chamfer-L2 x10^3, IoU, F-score@1 %, and
-the roll-symmetric IoU-S / MATCH-S). Writes ``OUT/monocone.md``, ``OUT/monocone.csv`` (the
-Table-1 column layout) and ``OUT/scores.csv`` (per target); measurements go to ``--work-dir``.
+into every model of ``MODELS`` (full-observability runs for the full files, partial-observability
+runs for the partial files, as in Table 1), and is scored against the normalised ground truth with
+the project's metrics (Chamfer-L2 x10^3, IoU, F-score@1 %, and the roll-symmetric IoU-S / MATCH-S).
+
+Writes ``--work-dir``/experiment/: ``scores.csv`` (per target, model and setting), ``experiment.json``
+(the measurement settings and checkpoints) and ``surfaces.npz`` (figure points);
+``radar2shape report --grid monocone`` turns them into reports/monocone/ (``make monocone`` runs both).
 
     .venv/bin/python scripts/monocone_experiment.py          # ~5 min on one CPU thread
 """
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import time
 from pathlib import Path
 
@@ -28,7 +31,7 @@ import numpy as np
 import torch
 import yaml
 
-from radar2shape.commands.reconstruct import is_profile_model, load_model, measured_input, radar_meta, reconstruct_input
+from radar2shape.commands.reconstruct import load_model, measured_input, reconstruct_input
 from radar2shape.errors import UserInputError
 from radar2shape.geometry.families import make_family
 from radar2shape.geometry.normalise import normalise, scaled
@@ -46,16 +49,15 @@ ROOT = Path(__file__).resolve().parents[1]
 # settings); runs written by older code that no longer loads are skipped.
 _TABLE1 = "runs/table1/radar2shape-{}/fit/version_0/checkpoints/last.ckpt"
 _OWN = "runs/monocone/radar2shape-{}/fit/version_0/checkpoints/last.ckpt"
-_DEMO = "runs/demo/stage2/version_0/checkpoints/last.ckpt"
 _ROLLSYM = "runs/rollsym/{}-{}-medium/fit/version_0/checkpoints/epoch=59-step=720.ckpt"
-MODELS = [  # the slug names the Table-1 cell folders (--table1-dir): monocone_<slug>-<setting>
-    ("Radar2Shape (3D, roll repeated)", {s: [_TABLE1.format(s), _OWN.format(s), _DEMO] for s in ("full", "partial")}),
-    ("Profile U-Net diffusion", {s: [_ROLLSYM.format("unet", s)] for s in ("full", "partial")}),
-    ("InvRT", {s: [_ROLLSYM.format("invrt", s)] for s in ("full", "partial")}),
+_DEMO = "runs/demo/stage2/fit/version_0/checkpoints/last.ckpt"
+MODELS = [  # (row of the monocone report layout, candidates); the row names the Table-1 cell folders too
+    ("radar2shape", {s: [_TABLE1.format(s), _OWN.format(s), _DEMO] for s in ("full", "partial")}),
+    ("unet", {s: [_ROLLSYM.format("unet", s)] for s in ("full", "partial")}),
+    ("invrt", {s: [_ROLLSYM.format("invrt", s)] for s in ("full", "partial")}),
 ]
 SETTINGS = ("full", "partial")
-METRICS = [("chamfer_l2_x1e3", "CD x10^3 ↓", 2), ("iou", "IoU ↑", 3), ("fscore_1pct", "F-score@1% ↑", 3),
-           ("iou_s", "IoU-S ↑", 3), ("match_s", "MATCH-S ↓", 3)]
+TABLE1_METRICS = ("chamfer_l2_x1e3", "iou", "fscore_1pct")
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -72,7 +74,6 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--keep", type=float, default=0.3, help="partial: fraction of aspects kept (one window)")
     parser.add_argument("--points", type=int, default=30_000, help="surface points per shape for CD / F-score")
     parser.add_argument("--occ", type=int, default=100_000, help="occupancy points for IoU")
-    parser.add_argument("--out", type=Path, default=ROOT / "reports/monocone")
     parser.add_argument("--work-dir", type=Path, default=ROOT / "runs/monocone")
     parser.add_argument("--table1-dir", type=Path, help="also write the rows as tested cells of a Table-1 sweep "
                         "folder (e.g. runs/table1), which `radar2shape report --grid table1` lists as extra rows")
@@ -119,75 +120,8 @@ def mean_std(values: list[float]) -> tuple[float, float, int]:
     return (float(v.mean()), float(v.std()), len(v)) if len(v) else (float("nan"), float("nan"), 0)
 
 
-def write_report(rows: list[dict], models: list[tuple], args, seconds: float, n_targets: int) -> None:
-    args.out.mkdir(parents=True, exist_ok=True)
-    with open(args.out / "scores.csv", "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    table, lines = [], []
-    for label, *_ in models:
-        entry = {"model": label.replace(CONTROL, "") + " on monocones" + (CONTROL if CONTROL in label else "")}
-        for setting in SETTINGS:
-            picked = [r for r in rows if r["model"] == label and r["setting"] == setting]
-            for key, _, _ in METRICS:
-                mean, std, _ = mean_std([r[key] for r in picked])
-                entry[f"{setting}/{key}_mean"], entry[f"{setting}/{key}_std"] = mean, std
-        table.append(entry)
-    with open(args.out / "monocone.csv", "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(table[0]))
-        writer.writeheader()
-        writer.writerows(table)
-    header = ["model"] + [f"{s}: {name}" for s in ("full", "partial (70 % of aspects masked)") for _, name, _ in METRICS]
-    config = args.data_config.relative_to(ROOT) if args.data_config.is_relative_to(ROOT) else args.data_config
-    low, high = args.model_band_ghz
-    lines += ["# Monoconic targets: zero-shot reconstruction from simulated measurements", "",
-              f"{n_targets} blunted cones (`{config}`), measured in simulation at {args.size_m:g} m length: PO, "
-              f"aspect-only (roll 0), aspects 0-180 deg every {args.aspect_step_deg:g} deg, {args.num_freq} "
-              f"frequencies over {low / args.size_m:g}-{high / args.size_m:g} GHz (= {low:g}-{high:g} GHz at the "
-              "models' 1 m), "
-              f"complex noise at {args.noise_db:g} dBsm (1 m scale), written as generic CSV and read back through "
-              f"`radar.measured` with `--size-m {args.size_m:g}`. Partial: one contiguous aspect window keeping "
-              f"{100 * args.keep:.0f} % of the aspects, the other rows absent (masked on the model grid). "
-              "No model saw a monocone in training (zero-shot): the 3D model was trained on `parts_tiny`, the "
-              "profile models on `frusta_rollsym`.", "",
-              "Cells: mean ± std over the targets. CD = Chamfer-L2 x10^3, IoU volumetric, F-score at 1 % of the unit "
-              "cube; IoU-S / MATCH-S compare the half cross-sections (docs/rollsym.md; a 3D mesh that is not a solid "
-              "of revolution scores IoU-S 0 and no MATCH-S).", "",
-              "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    for entry in table:
-        cells = [entry["model"]]
-        for setting in SETTINGS:
-            for key, _, digits in METRICS:
-                mean, std = entry[f"{setting}/{key}_mean"], entry[f"{setting}/{key}_std"]
-                cells.append("n/a" if not np.isfinite(mean) else f"{mean:.{digits}f} ± {std:.{digits}f}")
-        lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", "## Does the radar matter? (real minus control, paired over targets)", "",
-              "Each target scored with the reconstruction from its own radar minus the reconstruction from the next "
-              "target's radar: mean ± standard error of the paired differences. Near zero = the output hardly "
-              "depends on the input radar.", "",
-              "| model | full: Δ IoU | full: Δ IoU-S | partial: Δ IoU | partial: Δ IoU-S |", "|---|---|---|---|---|"]
-    for label, *_ in models:
-        if CONTROL in label:
-            continue
-        cells = [label]
-        for setting in SETTINGS:
-            for key in ("iou", "iou_s"):
-                real = {r["target"]: r[key] for r in rows if r["model"] == label and r["setting"] == setting}
-                control = {r["target"]: r[key] for r in rows if r["model"] == label + CONTROL and r["setting"] == setting}
-                diff = np.array([real[t] - control[t] for t in real if t in control])
-                cells.append(f"{diff.mean():+.3f} ± {diff.std(ddof=1) / np.sqrt(len(diff)):.3f}" if len(diff) > 1 else "n/a")
-        lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", "## Checkpoints", "", "| model | full | partial |", "|---|---|---|"]
-    lines += [f"| {label} | `{full}` | `{partial}` |" for label, full, partial in models if CONTROL not in label]
-    lines += ["", "![full](monocone_full.png)", "", "![partial](monocone_partial.png)"]
-    lines += ["", f"Produced by `python scripts/monocone_experiment.py` in {seconds / 60:.1f} min; per-target scores "
-              "in `scores.csv`, the table in Table-1 columns in `monocone.csv`."]
-    (args.out / "monocone.md").write_text("\n".join(lines) + "\n")
-
-
 def load_models() -> tuple[dict, list[tuple[str, str, str]]]:
-    """{(label, setting): (model, radar meta)} and (label, full ckpt, partial ckpt) of the rows that load."""
+    """{(label, setting): (model, radar spec)} and (label, full ckpt, partial ckpt) of the rows that load."""
     loaded, used = {}, []
     for label, candidates in MODELS:
         chosen = {}
@@ -196,8 +130,8 @@ def load_models() -> tuple[dict, list[tuple[str, str, str]]]:
                 if not (ROOT / ckpt).is_file():
                     continue
                 try:
-                    model, dm_hparams = load_model(ROOT / ckpt)
-                    loaded[label, setting] = (model, radar_meta(model, dm_hparams, None, ROOT / ckpt))
+                    model = load_model(ROOT / ckpt)
+                    loaded[label, setting] = (model, model.radar_spec)
                 except UserInputError as err:
                     print(f"skipping {ckpt}: {err}")
                     continue
@@ -215,33 +149,7 @@ def load_models() -> tuple[dict, list[tuple[str, str, str]]]:
 
 
 FIGURE_TARGETS = 4
-
-
-def save_figure(path: Path, cases: list, pictures: dict[str, list], setting: str) -> None:
-    """Side views (elevation 0, the cone's axis vertical): ground truth, then each model, for the first targets."""
-    from matplotlib.figure import Figure
-
-    from radar2shape.metrics.render import depth_image
-
-    columns = [("ground truth", [gt["points"] for _, _, gt in cases])] + list(pictures.items())
-    n = min(FIGURE_TARGETS, len(cases))
-    fig = Figure(figsize=(2.2 * len(columns), 2.2 * n + 0.4), layout="constrained")
-    axes = fig.subplots(n, len(columns), squeeze=False)
-    for col, (title, points) in enumerate(columns):
-        for row in range(n):
-            ax = axes[row, col]
-            ax.imshow(depth_image(points[row], -90.0, 0.0), cmap="viridis", vmin=-0.6, vmax=0.6)
-            ax.set(xticks=[], yticks=[])
-            if row == 0:
-                ax.set_title(title.replace(" (", "\n("), fontsize=8)
-            if col == 0:
-                ax.set_ylabel(f"target {row}", fontsize=8)
-    fig.suptitle(f"monocones, {setting} observability (side view, nose up)", fontsize=9)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-
-
-SLUGS = {"Radar2Shape (3D, roll repeated)": "radar2shape", "Profile U-Net diffusion": "unet", "InvRT": "invrt"}
+CONTROL = "_control"  # rows of a model fed another target's radar
 
 
 def write_table1_cells(rows: list[dict], models: list[tuple], folder: Path) -> None:
@@ -250,14 +158,14 @@ def write_table1_cells(rows: list[dict], models: list[tuple], folder: Path) -> N
     The Table-1 report reads any ``<model>-<group>`` folder with a logged test as a cell, so these
     become the "monocone_*" rows of `radar2shape report --grid table1` (columns full / partial).
     """
-    for label, *_ in models:
+    for name, *_ in models:
         for setting in SETTINGS:
-            picked = [r for r in rows if r["model"] == label and r["setting"] == setting]
+            picked = [r for r in rows if r["model"] == name and r["setting"] == setting]
             values = {"epoch": 0, "step": 0}
-            for key, _, _ in METRICS[:3]:
+            for key in TABLE1_METRICS:
                 mean, std, _ = mean_std([r[key] for r in picked])
                 values[f"test/{key}_mean"], values[f"test/{key}_std"] = mean, std
-            path = folder / f"monocone_{SLUGS[label]}-{setting}" / "test" / "version_0" / "metrics.csv"
+            path = folder / f"monocone_{name}-{setting}" / "test" / "version_0" / "metrics.csv"
             path.parent.mkdir(parents=True, exist_ok=True)
             with open(path, "w", newline="") as handle:
                 writer = csv.DictWriter(handle, fieldnames=list(values))
@@ -265,7 +173,28 @@ def write_table1_cells(rows: list[dict], models: list[tuple], folder: Path) -> N
                 writer.writerow(values)
 
 
-CONTROL = " (control: another target's radar)"
+
+def write_scores(rows: list[dict], pictures: dict, cases: list, models: list[tuple], args, seconds: float) -> Path:
+    """``scores.csv``, ``experiment.json`` and ``surfaces.npz`` under ``WORK_DIR/experiment`` (the
+    inputs of the ``monocone`` report layout)."""
+    folder = args.work_dir / "experiment"
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "scores.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    config = args.data_config.relative_to(ROOT) if args.data_config.is_relative_to(ROOT) else args.data_config
+    info = {"targets": len(cases), "data_config": str(config), "size_m": args.size_m,
+            "model_band_ghz": list(args.model_band_ghz), "num_freq": args.num_freq,
+            "aspect_step_deg": args.aspect_step_deg, "noise_db": args.noise_db, "keep": args.keep,
+            "seconds": round(seconds, 1), "checkpoints": {name: {"full": full, "partial": partial} for name, full, partial in models}}
+    (folder / "experiment.json").write_text(json.dumps(info, indent=2))
+    surfaces = {f"gt/{i}": gt["points"][:8192] for i, (_, _, gt) in enumerate(cases[:FIGURE_TARGETS])}
+    surfaces.update({f"{setting}/{name}/{i}": points for setting, by_model in pictures.items()
+                     for name, clouds in by_model.items() for i, points in enumerate(clouds)})
+    np.savez_compressed(folder / "surfaces.npz", **surfaces)
+    print(f"wrote {folder}; radar2shape report --grid monocone writes the tables")
+    return folder
 
 
 def main(argv=None) -> int:
@@ -281,12 +210,11 @@ def main(argv=None) -> int:
                       {"points": sample_surface(mesh, args.points, index)[0], "occ": occ,
                        "inside": contains(mesh, occ), "profile": profile}))
     rows, pictures = [], {setting: {} for setting in SETTINGS}
-    for (label, setting), (model, meta) in loaded.items():
+    for (label, setting), (model, spec) in loaded.items():
         recons = []
         for index, (task, files, gt) in enumerate(cases):
-            grid = measured_input([files[setting]], "csv", meta, profile=is_profile_model(model),
-                                  roll_symmetric=True, size_m=args.size_m)
-            recons.append(reconstruct_input(model, grid, meta, seed=index)[0])
+            grid = measured_input([files[setting]], "csv", spec, roll_symmetric=True, size_m=args.size_m)
+            recons.append(reconstruct_input(model, grid, seed=index)[0])
             rows.append({"target": index, "seed": task.seed, "model": label, "setting": setting,
                          "observed_cells": int(grid.mask.sum()), **score(recons[-1], gt)})
         # Control: target i scored against the reconstruction from target i+1's radar. If the
@@ -297,14 +225,10 @@ def main(argv=None) -> int:
         pictures[setting][label] = [prediction_surface(rec, 8192, 0) for rec in recons[:FIGURE_TARGETS]]
         real = [r["iou"] for r in rows if r["model"] == label and r["setting"] == setting]
         print(f"{label} / {setting}: IoU {np.mean(real):.3f}", flush=True)
-    write_report(rows, models + [(label + CONTROL, full, partial) for label, full, partial in models], args,
-                 time.perf_counter() - start, len(cases))
-    for setting in SETTINGS:
-        save_figure(args.out / f"monocone_{setting}.png", cases, pictures[setting], setting)
+    write_scores(rows, pictures, cases, models, args, time.perf_counter() - start)
     if args.table1_dir is not None:
         write_table1_cells(rows, models, args.table1_dir)
         print(f"wrote the monocone_* cells into {args.table1_dir}")
-    print(f"wrote {args.out / 'monocone.md'}")
     return 0
 
 

@@ -91,3 +91,17 @@ def test_toy_model_learns_radius(tmp_path):
 
     rows = [r for r in csv.DictReader(open(root / "version_0" / "metrics.csv")) if r.get("val/radius_l1")]
     assert float(rows[-1]["val/radius_l1"]) < 0.0875 / 3
+
+
+@pytest.mark.parametrize("section, class_path", [
+    ("model", "torch.nn.Linear"),
+    ("model", "lightning.pytorch.demos.boring_classes.BoringModel"),
+    ("data", "lightning.pytorch.demos.boring_classes.BoringDataModule"),
+])
+def test_class_outside_the_reconstruction_bounds_is_one_line_error(capsys, tmp_path, section, class_path):
+    """Only ReconstructionModel / ReconstructionDataModule subclasses parse: refused before anything runs."""
+    code = cli.main(["fit", "--config", TOY, f"--{section}={class_path}", f"--trainer.default_root_dir={tmp_path}"])
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("error: radar2shape fit: ") and class_path in err
+    assert not (tmp_path / "version_0").exists()

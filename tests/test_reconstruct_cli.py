@@ -1,23 +1,49 @@
-"""``radar2shape reconstruct``: bad response files fail with one clear line; good ones give a mesh."""
+"""``radar2shape reconstruct``: bad response files fail with one clear line; good ones give a mesh.
+
+The radar spec (grid + dB normalisation) comes from the checkpoint alone: models fitted on tiny
+built datasets reconstruct after the dataset is deleted, exactly as the model does in memory.
+"""
 
 from __future__ import annotations
 
+import shutil
+
+import lightning as L
 import numpy as np
 import pytest
+import torch
+import trimesh
 
+from data.conftest import tiny_config
+from data_modules import ProfileDataModule, ShapeDataModule
+from data_modules.build import build_dataset
 from models.test_radar_diffusion import (  # noqa: F401  (single_thread: the module's fixture)
-    save_checkpoint,
     single_thread,
     sphere_batch,
     sphere_stage1,
     tiny_model,
 )
 from radar2shape.cli import main
-from radar2shape.radar import save_response
+from radar2shape.errors import UserInputError
+from radar2shape.models.profile_diffusion import ProfileUNetDiffusion
+from radar2shape.models.radar_diffusion import RadarDiffusion
+from radar2shape.radar import RadarGrid, save_response
+from radar2shape.radar.spec import RadarSpec
 
 ASPECT = np.linspace(0, np.pi, 4)
 ROLL = np.linspace(0, 2 * np.pi, 8, endpoint=False)
 FREQ = np.linspace(8e9, 12e9, 8)
+SPEC = RadarSpec(RadarGrid(ASPECT, ROLL, FREQ), db_mean=-30.0, db_std=10.0, floor_db=-100.0)
+SMALL_POINTS = {split: {"surface": 64, "sdf": 128, "eval": 0, "occ": 0} for split in ("train", "val", "test")}
+
+
+def save_with_spec(model: L.LightningModule, path) -> str:
+    """A Lightning-format checkpoint with what the model's checkpoint hook adds (its radar spec)."""
+    checkpoint = {"state_dict": model.state_dict(), "hyper_parameters": dict(model.hparams),
+                  "pytorch-lightning_version": L.__version__}
+    model.on_save_checkpoint(checkpoint)
+    torch.save(checkpoint, path)
+    return str(path)
 
 
 @pytest.fixture(scope="module")
@@ -26,9 +52,8 @@ def checkpoint(tmp_path_factory, single_thread) -> str:
     folder = tmp_path_factory.mktemp("reconstruct")
     model = tiny_model(sphere_stage1(folder / "stage1.ckpt"), sample_steps=10)
     model.standardiser.fit(model.stage1.encode(sphere_batch()["surface_points"])[0])
-    model.hparams.radar_meta = {"aspect_rad": ASPECT.tolist(), "roll_rad": ROLL.tolist(), "freq_hz": FREQ.tolist(),
-                                "db_mean": -30.0, "db_std": 10.0, "floor_db": -100.0}
-    return save_checkpoint(model, folder / "stage2.ckpt")
+    model.set_radar_spec(SPEC)
+    return save_with_spec(model, folder / "stage2.ckpt")
 
 
 def response_file(path, aspect=ASPECT, roll=ROLL, freq=FREQ, **replace) -> str:
@@ -84,3 +109,95 @@ def test_missing_checkpoint_and_bad_options(checkpoint, tmp_path, capsys):
     assert run(str(tmp_path / "none.ckpt"), radar, tmp_path / "m.obj") == 2
     assert run(checkpoint, radar, tmp_path / "m.obj", "--steps", "1000") == 2
     assert "--steps" in capsys.readouterr().err
+
+
+def test_checkpoint_without_radar_spec_is_refused(checkpoint, tmp_path, capsys):
+    old = torch.load(checkpoint, weights_only=True)
+    del old["radar_spec"]
+    old["hyper_parameters"]["radar_meta"] = SPEC.to_dict()  # what checkpoints held before
+    torch.save(old, tmp_path / "old.ckpt")
+    assert run(str(tmp_path / "old.ckpt"), response_file(tmp_path / "r.npz"), tmp_path / "m.obj") == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: --ckpt: {tmp_path / 'old.ckpt'} stores no radar spec") and "retrain" in err
+    assert "\n" not in err
+
+
+def fit(model, datamodule, root) -> str:
+    """Two training steps through a Trainer; the checkpoint it saves."""
+    trainer = L.Trainer(max_steps=2, logger=False, enable_checkpointing=False, enable_progress_bar=False,
+                        enable_model_summary=False, accelerator="cpu", default_root_dir=root, limit_val_batches=0)
+    trainer.fit(model, datamodule=datamodule)
+    trainer.save_checkpoint(root / "model.ckpt")
+    return str(root / "model.ckpt")
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory, single_thread):
+    """Tiny 3D and profile models fitted on tiny built datasets, which are then deleted.
+
+    Returns ``{kind: (checkpoint, spec, complex response of a test record)}``.
+    """
+    out = {}
+    for kind, family in (("3d", "parts"), ("profile", "frusta")):
+        root = tmp_path_factory.mktemp(kind)
+        data = root / "data"
+        build_dataset(tiny_config(family, 5), data, progress=False)
+        if kind == "3d":
+            datamodule = ShapeDataModule(str(data), batch_size=2, points=SMALL_POINTS, floor_db=-80.0)
+            model = tiny_model(sphere_stage1(root / "stage1.ckpt"), num_freq=16, sample_steps=4)
+        else:
+            datamodule = ProfileDataModule(str(data), batch_size=2, points=SMALL_POINTS)
+            torch.manual_seed(0)
+            model = ProfileUNetDiffusion(num_aspect=16, num_freq=16, profile_points=datamodule.profile_points,
+                                         profile_channels=4, base_channels=8, depth=1, time_dim=16, out_channels=4,
+                                         num_steps=10)
+            model.hparams["_class_path"] = "radar2shape.models.profile_diffusion.ProfileUNetDiffusion"  # as the CLI saves
+        response = datamodule.records("test")[0]["radar"]
+        out[kind] = (fit(model, datamodule, root), datamodule.radar_spec, response)
+        shutil.rmtree(data)
+    return out
+
+
+def test_3d_model_reconstructs_from_its_checkpoint_alone(fitted, tmp_path):
+    ckpt, spec, response = fitted["3d"]
+    assert spec.floor_db == -80.0 and not spec.roll_symmetric  # the DataModule's, not a default
+    radar, out, saved = tmp_path / "r.npz", tmp_path / "m.obj", tmp_path / "input.npz"
+    save_response(radar, response, *(getattr(spec.grid, a) for a in ("aspect_rad", "roll_rad", "freq_hz")))
+    assert run(ckpt, str(radar), out, "--save-input", str(saved)) == 0
+    expected = spec.normalise(spec.to_db(response))  # every cell observed
+    np.testing.assert_allclose(np.load(saved)["radar"], expected, atol=1e-5)
+    model = RadarDiffusion.load_from_checkpoint(ckpt, map_location="cpu", weights_only=True).eval()
+    assert model.radar_spec == spec
+    batch = {"radar": torch.from_numpy(expected)[None], "radar_mask": torch.ones(1, *spec.input_shape[:2], dtype=torch.bool)}
+    mesh = model.reconstruct(batch)[0].mesh
+    written = trimesh.load(out, force="mesh", process=False)
+    assert len(mesh.faces) > 0 and written.faces.shape == mesh.faces.shape
+    np.testing.assert_allclose(written.vertices, mesh.vertices, atol=1e-5)
+
+
+def test_profile_model_reconstructs_from_its_checkpoint_alone(fitted, tmp_path):
+    ckpt, spec, response = fitted["profile"]
+    assert spec.roll_symmetric and spec.input_shape == (16, 16)
+    radar, out = tmp_path / "r.npz", tmp_path / "p.obj"
+    save_response(radar, response[:, :1], spec.grid.aspect_rad, spec.grid.roll_rad, spec.grid.freq_hz)
+    assert run(ckpt, str(radar), out) == 0
+    model = ProfileUNetDiffusion.load_from_checkpoint(ckpt, map_location="cpu", weights_only=True).eval()
+    assert model.radar_spec == spec
+    expected = spec.normalise(spec.to_db(response[:, 0]))
+    recon = model.reconstruct({"radar": torch.from_numpy(expected)[None], "radar_mask": torch.ones(1, 16, dtype=torch.bool)})[0]
+    written = trimesh.load(out, force="mesh", process=False)
+    assert written.faces.shape == recon.mesh.faces.shape
+    np.testing.assert_allclose(written.vertices, recon.mesh.vertices, atol=1e-5)
+
+
+def test_a_datamodule_that_does_not_fit_the_network_is_refused(fitted, checkpoint):
+    profile_spec = fitted["profile"][1]
+    model = RadarDiffusion.load_from_checkpoint(checkpoint, map_location="cpu", weights_only=True)
+    with pytest.raises(UserInputError, match=r"RadarDiffusion: expects \[A, R, F=8\] radar.*16 x 16"):
+        model.set_radar_spec(profile_spec)
+    profile = ProfileUNetDiffusion(num_aspect=16, num_freq=8, profile_points=16)
+    with pytest.raises(UserInputError, match=r"roll-symmetric radar \[A=16, F=8\]"):
+        profile.set_radar_spec(profile_spec)
+    with pytest.raises(UserInputError, match="roll-symmetric"):
+        ProfileUNetDiffusion(num_aspect=4, num_freq=8).set_radar_spec(SPEC)
+    ProfileUNetDiffusion(num_aspect=16, num_freq=16).set_radar_spec(profile_spec)  # fits: accepted

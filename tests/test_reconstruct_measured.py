@@ -15,19 +15,18 @@ import pytest
 import torch
 import trimesh
 
-from models.test_radar_diffusion import save_checkpoint
 from radar2shape.cli import main
 from radar2shape.geometry.families.monocone import Monocone
 from radar2shape.geometry.normalise import normalise, scaled
 from radar2shape.geometry.profile import profile_to_mesh
 from radar2shape.models.profile_diffusion import ProfileUNetDiffusion
-from radar2shape.radar import save_response, simulate, to_db
+from radar2shape.radar import RadarGrid, save_response, simulate, to_db
 from radar2shape.radar.measured import write_csv
-from test_reconstruct_cli import ASPECT, FREQ, ROLL, checkpoint, single_thread  # noqa: F401  (fixtures)
+from radar2shape.radar.spec import RadarSpec
+from test_reconstruct_cli import ASPECT, FREQ, ROLL, checkpoint, save_with_spec, single_thread  # noqa: F401  (fixtures)
 
 ROOT = Path(__file__).resolve().parents[1]
-META = {"aspect_rad": ASPECT.tolist(), "roll_rad": ROLL.tolist(), "freq_hz": FREQ.tolist(),
-        "db_mean": -30.0, "db_std": 10.0, "floor_db": -100.0}
+PROFILE_SPEC = RadarSpec(RadarGrid(ASPECT, [0.0], FREQ), -30.0, 10.0, roll_symmetric=True)
 
 
 def aspect_only_csv(path, aspects_deg=np.arange(0.0, 81.0, 5.0)):
@@ -85,8 +84,8 @@ def profile_checkpoint(tmp_path_factory, single_thread) -> str:  # noqa: F811
     model = ProfileUNetDiffusion(num_aspect=4, num_freq=8, profile_channels=4, base_channels=8, depth=1,
                                  time_dim=16, out_channels=4, num_steps=10)
     model.hparams["_class_path"] = "radar2shape.models.profile_diffusion.ProfileUNetDiffusion"
-    model.hparams["radar_meta"] = META
-    return save_checkpoint(model, tmp_path_factory.mktemp("profile") / "profile.ckpt")
+    model.set_radar_spec(PROFILE_SPEC)
+    return save_with_spec(model, tmp_path_factory.mktemp("profile") / "profile.ckpt")
 
 
 def test_profile_model_reads_the_aspect_only_response_directly(profile_checkpoint, tmp_path):
@@ -107,9 +106,6 @@ def test_profile_model_errors(profile_checkpoint, tmp_path, capsys):
     assert run(profile_checkpoint, tmp_path / "p.obj", "--measured", aspect_only_csv(tmp_path / "m.csv"),
                "--steps", "3") == 2
     assert "--steps: not used by ProfileUNetDiffusion" in capsys.readouterr().err
-    assert run(profile_checkpoint, tmp_path / "p.obj", "--measured", aspect_only_csv(tmp_path / "m.csv"),
-               "--dataset", str(tmp_path / "nowhere")) == 2
-    assert "--dataset" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -8,8 +8,9 @@ import pytest
 import trimesh
 import yaml
 
-from radar2shape import cli
-from radar2shape.commands import report
+from radar2shape import cli, report_layouts, sweep
+from radar2shape.report_layouts import LAYOUTS
+from radar2shape.reporting import write_report
 
 METRICS = {  # model -> (chamfer, iou, fscore) means
     "radar2shape": (1.0, 0.8, 0.9),
@@ -79,6 +80,12 @@ def test_report_writes_table1_layout_csv_and_figure(grid, tmp_path):
 REPO = Path(__file__).resolve().parents[1]
 
 
+def _cell(layout, name):
+    """``(model, group)`` of a Table 1 run name; ``(name, None)`` for an auxiliary run."""
+    where = layout.split(name)
+    return (where["row"], where["group"]) if where else (name, None)
+
+
 def test_posbr_runs_are_column_groups_and_test_only_runs_list_their_command(tmp_path):
     runs = tmp_path / "runs"
     names = ["radar2shape-full", "radar2shape-full-sbr", "radar2shape_lora-full-sbr"]
@@ -102,13 +109,12 @@ def test_posbr_runs_are_column_groups_and_test_only_runs_list_their_command(tmp_
     assert (out / "table1_full-sbr.png").is_file()
 
 
-def test_rollsym_grid_is_handed_to_its_table_script(tmp_path):
-    """``radar2shape report --grid rollsym`` writes the Table 2 layout of scripts/rollsym_table.py."""
+def test_rollsym_grid_writes_its_table2_layout(tmp_path):
+    """``radar2shape report --grid rollsym`` writes the Table 2 layout the grid names."""
     matrix = {axis: {v: {} for v in values} for axis, values in
               {"model": ["unet", "invrt"], "obs": ["full", "partial"], "noise": ["low"]}.items()}
     path = tmp_path / "rollsym.yaml"
-    path.write_text(yaml.safe_dump({"out_dir": str(tmp_path / "runs"), "matrix": matrix,
-                                    "report": str(REPO / "scripts" / "rollsym_table.py")}, sort_keys=False))
+    path.write_text(yaml.safe_dump({"out_dir": str(tmp_path / "runs"), "matrix": matrix, "report": "rollsym"}, sort_keys=False))
     run_dir = tmp_path / "runs" / "unet-full-low"
     run_dir.mkdir(parents=True)
     (run_dir / "metrics.json").write_text(json.dumps({"iou_s_mean": 0.9, "iou_s_std": 0.1}))
@@ -119,26 +125,55 @@ def test_rollsym_grid_is_handed_to_its_table_script(tmp_path):
     assert "| Profile U-Net diffusion (ours) | n/a | **0.900 ± 0.100** |" in text
     assert "1 of 4 runs finished; summed wall time of the runs 2.0 min" in text
     assert not (out / "rollsym.md").exists()  # not the Table 1 layout
-    assert report.other_report_script(REPO / "conf" / "grid" / "rollsym.yaml") == Path("scripts/rollsym_table.py")
-    assert report.other_report_script(REPO / "conf" / "grid" / "table1.yaml") is None
+    assert sweep.load_grid(REPO / "conf" / "grid" / "rollsym.yaml").report == "rollsym"
+    assert sweep.load_grid(REPO / "conf" / "grid" / "table1.yaml").report == "table1"
+    # --layout overrides the grid's: the same runs as a Table 1 layout
+    assert cli.main(["report", "--grid", str(path), "--out", str(out), "--layout", "table1"]) == 0
+    assert "| unet |" in (out / "rollsym.md").read_text()
 
 
-def test_missing_report_script_is_a_one_line_error(tmp_path, capsys):
+def test_unknown_report_layout_is_a_one_line_error(tmp_path, capsys):
     path = tmp_path / "g.yaml"
     path.write_text(yaml.safe_dump({"out_dir": str(tmp_path / "runs"), "runs": [{"name": "a"}], "report": "nope/table.py"}))
     assert cli.main(["report", "--grid", str(path)]) == 2
-    assert "report script nope/table.py not found" in capsys.readouterr().err
+    assert "unknown report layout 'nope/table.py'" in capsys.readouterr().err
 
 
-def test_grid_name_resolves_under_conf_grid():
-    assert str(report.grid_path("table1")) == "conf/grid/table1.yaml"
-    assert report.split_name("tmnet-partial-posbr") == ("tmnet", "partial-posbr")
-    assert report.split_name("radar2shape_stage1") == ("radar2shape_stage1", None)
+def test_grid_name_resolves_under_conf_grid(monkeypatch):
+    monkeypatch.chdir(REPO)
+    assert str(sweep.grid_path("table1")) == "conf/grid/table1.yaml"
+    table1 = LAYOUTS["table1"]
+    assert table1.split("tmnet-partial-posbr") == {"row": "tmnet", "group": "partial-posbr"}
+    assert table1.split("radar2shape_stage1") is None
+    assert LAYOUTS["rollsym"].split("unet-full-low") == {"row": "unet", "group": "full", "section": "low"}
 
 
 def test_missing_grid_is_a_one_line_error(tmp_path, capsys):
     assert cli.main(["report", "--grid", str(tmp_path / "nope.yaml")]) == 2
-    assert "nope.yaml not found" in capsys.readouterr().err
+    assert "nope.yaml (give a name under conf/grid/" in capsys.readouterr().err
+
+
+def test_demo_layout_tables_per_observability(tmp_path, monkeypatch):
+    """The demo grid's runs -> README.md with one table per observability, CSVs, and the verdict line."""
+    monkeypatch.chdir(REPO)
+    grid = sweep.load_grid("demo")
+    assert [r.name for r in grid.runs if r.command == "fit"] == ["stage1", "stage2"] and not grid.test
+    grid.out_dir = tmp_path / "runs"
+    values = {"radar2shape": (14.0, 0.26, 0.08), "nearest": (8.0, 0.43, 0.17), "mean_shape": (79.0, 0.04, 0.02)}
+    for run in grid.runs:
+        row = run.name.split("-")[0]
+        if row in values:
+            finished_run(grid.out_dir / run.name, *values[row], saved=())
+    out = tmp_path / "demo"
+    text = write_report(grid, out).read_text()
+    full, partial = text.split("## Full observability")[1].split("## Partial observability")
+    assert "| Radar2Shape | 14.00 ± 0.10 | 0.260 ± 0.050 | 0.080 ± 0.020 |" in full
+    assert "| nearest-neighbour | **8.00 ± 0.10** | **0.430 ± 0.050** | **0.170 ± 0.020** |" in partial
+    assert "(full observability): **yes**" in text and "| stage1 | missing |" in text
+    with (out / "table_partial.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [r["model"] for r in rows] == ["Radar2Shape", "nearest-neighbour", "mean-shape"]
+    assert float(rows[2]["chamfer_l2_x1e3_mean"]) == 79.0
 
 
 @pytest.mark.parametrize("name", ["table1", "table1-paper"])
@@ -148,15 +183,15 @@ def test_table1_grids_name_cells_and_train_stage1_first(name):
     every row is in the grid (references and PO-SBR rows included, no manual step), and the
     PO-SBR rows test on an SBR dataset the grid builds, from the PO run of the same observability."""
     from data_modules.config import load_build_config
-    from radar2shape.sweep import load_grid
 
     repo = REPO
-    grid = load_grid(repo / report.grid_path(name))
+    grid = sweep.load_grid(repo / "conf" / "grid" / f"{name}.yaml")
+    layout = LAYOUTS["table1"]
     order = [run.name for run in grid.runs]
     for i, run in enumerate(grid.runs):
-        model, group = report.split_name(run.name)
-        assert model in report.MODEL_TITLES or run.name.endswith("_stage1"), run.name
-        assert group is None or group in report.GROUP_TITLES, run.name
+        model, group = _cell(layout, run.name)
+        assert model in report_layouts.MODEL_TITLES or run.name.endswith("_stage1"), run.name
+        assert group is None or group in report_layouts.GROUP_TITLES, run.name
         for path in run.configs + [v for v in run.overrides.values() if str(v).endswith(".yaml")]:
             assert (repo / path).is_file(), path
         checkpoint = run.overrides.get("model.init_args.stage1_ckpt")
@@ -166,7 +201,7 @@ def test_table1_grids_name_cells_and_train_stage1_first(name):
             assert order.index(stage1) < i
     built = {command[command.index("--out") + 1]: command[command.index("--config") + 1] for command in grid.prepare}
     for run in grid.runs:
-        model, group = report.split_name(run.name)
+        model, group = _cell(layout, run.name)
         root = run.overrides.get("data.init_args.root")
         assert root is None or root in built, (run.name, root)
         if group and group.endswith("-sbr"):
@@ -176,7 +211,7 @@ def test_table1_grids_name_cells_and_train_stage1_first(name):
             assert po_run == f"{grid.out_dir}/radar2shape-{obs}/fit/version_0/checkpoints/last.ckpt", run.name
             assert run.command == ("test" if model == "radar2shape" else "fit"), run.name
             assert run.overrides["data.init_args.observability"] == obs
-    cells = {report.split_name(n) for n in order}
+    cells = {_cell(layout, n) for n in order}
     for model in ("radar2shape", "diffusion_sdf", "tmnet", "list", "nearest", "mean_shape"):
         assert {(model, "full"), (model, "partial")} <= cells, model
     assert {("radar2shape", "full-sbr"), ("radar2shape_lora", "partial-sbr")} <= cells

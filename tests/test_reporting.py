@@ -35,3 +35,20 @@ def test_read_logged_metrics_takes_last_value(tmp_path):
     path = tmp_path / "metrics.csv"
     path.write_text("epoch,test/iou_mean,val/loss\n0,,1.0\n1,0.7,\n2,0.75,\n")
     assert read_logged_metrics(path) == {"iou_mean": 0.75}
+
+
+def test_layout_maps_run_names_onto_sections_rows_and_groups():
+    from pathlib import Path
+
+    from radar2shape.reporting import Cell, Layout
+
+    layout = Layout("t", tuple(COLUMNS), write=None, parts=("row", "group", "section"),
+                    row_titles={"a": "Model A"}, group_titles={"full": "Full"})
+    cells = [Cell(name, Path(), "done", {}, {"iou_mean": value}) for name, value in
+             [("a-full-low", 0.1), ("b-full-low", 0.2), ("a-partial-low", 0.3), ("a-full-high", 0.4), ("stage1", 9.0)]]
+    (low, rows, columns), (high, high_rows, high_columns) = layout.tables(cells)
+    assert (low, high) == ("low", "high")
+    assert [c.header for c in columns] == ["Full: CD", "Full: IoU", "partial: CD", "partial: IoU"]
+    assert rows == [("Model A", {"full/iou_mean": 0.1, "partial/iou_mean": 0.3}), ("b", {"full/iou_mean": 0.2})]
+    assert high_rows == [("Model A", {"full/iou_mean": 0.4})] and len(high_columns) == 2
+    assert layout.split("stage1") is None and layout.split("a-full-sbr-x") == {"row": "a", "group": "full", "section": "sbr-x"}

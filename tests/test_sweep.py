@@ -1,7 +1,8 @@
-"""The grid runner: grid parsing, one folder per run, and resuming after a kill (toy sphere config)."""
+"""``radar2shape sweep``: the grid schema, one folder per run, and resuming after a kill (toy sphere config)."""
 
 import json
 import os
+from pathlib import Path
 
 import pytest
 import torch
@@ -9,6 +10,9 @@ import yaml
 
 from radar2shape import cli, sweep
 from radar2shape.errors import UserInputError
+from radar2shape.reporting import write_report
+
+REPO = Path(__file__).resolve().parents[1]
 
 TOY = "conf/experiment/toy_sphere.yaml"
 TINY = {
@@ -20,6 +24,11 @@ TINY = {
 }
 
 
+def run_sweep(argv):
+    """``radar2shape sweep ARGV`` (through run_tool, so tests may patch cli.main for the runs)."""
+    return cli.run_tool("sweep", [str(a) for a in argv])
+
+
 def write_grid(tmp_path, **spec):
     path = tmp_path / "grid.yaml"
     path.write_text(yaml.safe_dump({"out_dir": str(tmp_path / "runs"), **spec}, sort_keys=False))
@@ -27,7 +36,7 @@ def write_grid(tmp_path, **spec):
 
 
 def toy_grid(tmp_path):
-    matrix = {"hidden": {"h8": {"overrides": {"model.init_args.hidden": 8}}, "h16": {"overrides": {"model.init_args.hidden": 16}}}}
+    matrix = {"hidden": {"h8": {"overrides": {"model.init_args.mlp_hidden": 8}}, "h16": {"overrides": {"model.init_args.mlp_hidden": 16}}}}
     return write_grid(tmp_path, configs=[TOY], overrides=TINY, matrix=matrix, threads=1)
 
 
@@ -54,7 +63,12 @@ def test_matrix_expands_in_order_and_later_axes_win(tmp_path):
         ({"runs": [{"name": "a"}, {"name": "a"}]}, "duplicate"),
         ({"runs": [{"name": "a/b"}]}, "run name"),
         ({"runs": [{"configs": []}]}, "needs a 'name'"),
-        ({"runs": [{"name": "a"}], "bogus": 1}, "unknown keys"),
+        ({"runs": [{"name": "a"}], "bogus": 1}, "key 'bogus': unknown key"),
+        ({"runs": [{"name": "a", "overrides": {}, "bogus": 1}]}, r"runs\[0\]: key 'bogus': unknown key"),
+        ({"runs": [{"name": "a", "configs": "x.yaml"}]}, r"runs\[0\]: key 'configs'"),
+        ({"runs": [{"name": "a"}], "threads": "two"}, "key 'threads'"),
+        ({"runs": [{"name": "a"}], "test": "maybe"}, "key 'test'"),
+        ({"matrix": {"m": {}}}, "matrix.m: expected a non-empty mapping"),
         ({}, "no runs"),
     ],
 )
@@ -64,8 +78,33 @@ def test_bad_grids_raise_clear_errors(tmp_path, spec, message):
 
 
 def test_missing_grid_file_exits_2(tmp_path, capsys):
-    assert sweep.main([str(tmp_path / "nope.yaml")]) == 2
+    assert run_sweep([str(tmp_path / "nope.yaml")]) == 2
     assert "grid file not found" in capsys.readouterr().err
+    assert run_sweep(["no_such_grid"]) == 2
+    assert "grid file not found: conf/grid/no_such_grid.yaml" in capsys.readouterr().err
+
+
+def test_sweep_help_and_list(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["sweep", "--help"])
+    assert exit_info.value.code == 0 and "--keep-going" in capsys.readouterr().out
+    assert run_sweep([chained_grid(tmp_path), "--list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[0] for line in lines] == ["a [todo]", "ref [todo]", "b [todo]"]
+    assert lines[2].startswith("b [todo]: test --config=conf/experiment/toy_sphere.yaml") and "--ckpt_path=" in lines[2]
+
+
+@pytest.mark.parametrize("path", sorted((REPO / "conf" / "grid").glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_grid_file_loads(path, monkeypatch):
+    """Each grid validates, names a report layout, and its config files exist."""
+    monkeypatch.chdir(REPO)
+    grid = sweep.load_grid(path.stem)
+    assert grid.path == Path("conf/grid") / path.name and grid.runs and grid.report is not None
+    for run in grid.runs:
+        for config in run.configs + [v for v in run.overrides.values() if str(v).endswith(".yaml")]:
+            assert (REPO / config).is_file(), (run.name, config)
+    for command in grid.prepare:
+        assert command[0] in cli.TOOL_COMMANDS and (REPO / command[command.index("--config") + 1]).is_file()
 
 
 def test_killed_sweep_resumes_and_skips_finished_runs(tmp_path, monkeypatch):
@@ -82,7 +121,7 @@ def test_killed_sweep_resumes_and_skips_finished_runs(tmp_path, monkeypatch):
 
     monkeypatch.setattr(cli, "main", killed_during_second_fit)
     with pytest.raises(KeyboardInterrupt):
-        sweep.main([str(grid_path)])
+        run_sweep([str(grid_path)])
     runs = tmp_path / "runs"
     assert (runs / "h8" / "done").is_file() and not (runs / "h16" / "done").exists()
     h8_done = (runs / "h8" / "done").stat().st_mtime_ns
@@ -91,7 +130,7 @@ def test_killed_sweep_resumes_and_skips_finished_runs(tmp_path, monkeypatch):
     monkeypatch.setattr(cli, "main", lambda args: calls.append(args[0]) or real_main(args))
     h8_checkpoint = next((runs / "h8" / "fit").rglob("*.ckpt"))
     h8_checkpoint_mtime = h8_checkpoint.stat().st_mtime_ns
-    assert sweep.main([str(grid_path)]) == 0
+    assert run_sweep([str(grid_path)]) == 0
     assert calls == ["fit", "test"]  # only the unfinished run, from scratch
     assert (runs / "h8" / "done").stat().st_mtime_ns == h8_done
     assert h8_checkpoint.stat().st_mtime_ns == h8_checkpoint_mtime  # h8 was not refitted
@@ -103,7 +142,7 @@ def test_killed_sweep_resumes_and_skips_finished_runs(tmp_path, monkeypatch):
 
     calls.clear()
     threads = torch.get_num_threads()
-    assert sweep.main([str(grid_path)]) == 0 and calls == []
+    assert run_sweep([str(grid_path)]) == 0 and calls == []
     assert torch.get_num_threads() == threads  # the grid's `threads: 1` applied only while it ran
 
 
@@ -128,7 +167,7 @@ def test_test_only_runs_and_dependencies_by_path(tmp_path, monkeypatch):
     real_main = cli.main
     calls = []
     monkeypatch.setattr(cli, "main", lambda args: calls.append((args[0], args[-1].split("=")[0])) or real_main(args))
-    assert sweep.main([str(grid_path)]) == 0
+    assert run_sweep([str(grid_path)]) == 0
     # a: fit + test on its checkpoint; ref and b: test only, b with its own ckpt_path and no other
     assert calls == [("fit", "--trainer.default_root_dir"), ("test", "--ckpt_path"),
                      ("test", "--trainer.default_root_dir"), ("test", "--trainer.default_root_dir")]
@@ -144,15 +183,15 @@ def test_test_only_runs_and_dependencies_by_path(tmp_path, monkeypatch):
     later = (runs / "b" / "done").stat().st_mtime + 1.0  # as if `a` was redone after b finished
     os.utime(runs / "a" / "done", (later, later))
     calls.clear()
-    assert sweep.main([str(grid_path)]) == 0
+    assert run_sweep([str(grid_path)]) == 0
     assert [c[0] for c in calls] == ["test"]  # b only
 
     # a run whose arguments changed in the grid is redone (and so are its dependants)
     spec = yaml.safe_load(grid_path.read_text())
-    spec["runs"][0]["overrides"]["model.init_args.hidden"] = 8
+    spec["runs"][0]["overrides"]["model.init_args.mlp_hidden"] = 8
     grid_path.write_text(yaml.safe_dump(spec, sort_keys=False))
     calls.clear()
-    assert sweep.main([str(grid_path)]) == 0
+    assert run_sweep([str(grid_path)]) == 0
     assert [c[0] for c in calls] == ["fit", "test", "test"]  # a (changed), then b (a finished after it)
 
 
@@ -162,19 +201,21 @@ def test_dependencies_must_come_first_and_be_done(tmp_path, capsys):
         sweep.load_grid(write_grid(tmp_path, runs=[{"name": "b", "overrides": {"ckpt_path": last}}, {"name": "a"}]))
     with pytest.raises(UserInputError, match="command must be one of"):
         sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a", "command": "predict"}]))
-    with pytest.raises(UserInputError, match="matrix.m.x: expected a mapping"):  # command is per run, not per axis value
+    with pytest.raises(UserInputError, match="matrix.m.x: key 'command': unknown key"):  # command is per run, not per axis value
         sweep.load_grid(write_grid(tmp_path, matrix={"m": {"x": {"command": "test"}}}))
-    assert sweep.main([str(chained_grid(tmp_path)), "--only", "b"]) == 1  # a not done: one line, no traceback
+    assert run_sweep([str(chained_grid(tmp_path)), "--only", "b"]) == 1  # a not done: one line, no traceback
     err = capsys.readouterr().err
     assert "b: FAILED: needs ['a'], not done" in err and "Traceback" not in err
     assert not (tmp_path / "runs" / "b").exists()
 
 
 def test_prepare_threads_and_report_keys(tmp_path):
-    grid = sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], threads=1, report="scripts/x.py",
+    grid = sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], threads=1, report="rollsym",
                                       prepare=[["build-data", "--config", "c.yaml", "--num", 3]]))
-    assert grid.threads == 1 and grid.report == "scripts/x.py"
+    assert grid.threads == 1 and grid.report == "rollsym"
     assert grid.prepare == [["build-data", "--config", "c.yaml", "--num", "3"]]
+    with pytest.raises(UserInputError, match="key 'report': unknown report layout 'scripts/x.py'"):  # a layout, not a script
+        sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], report="scripts/x.py"))
     with pytest.raises(UserInputError, match="prepare"):
         sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], prepare="build-data"))
     with pytest.raises(UserInputError, match="threads"):
@@ -182,24 +223,20 @@ def test_prepare_threads_and_report_keys(tmp_path):
 
 
 def test_rollsym_table_reads_finished_runs(tmp_path):
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("rollsym_table", cli.__file__.replace("src/radar2shape/cli.py", "scripts/rollsym_table.py"))
-    table = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(table)
     matrix = {axis: {v: {} for v in values} for axis, values in
               {"model": ["unet", "invrt"], "obs": ["full", "partial"], "noise": ["low"]}.items()}
-    grid_path = write_grid(tmp_path, matrix=matrix)
+    grid_path = write_grid(tmp_path, matrix=matrix, report="rollsym")
     for name, iou_s in {"unet-full-low": 0.9, "invrt-full-low": 0.7, "invrt-partial-low": 0.5}.items():
         run_dir = tmp_path / "runs" / name
         run_dir.mkdir(parents=True)
         (run_dir / "metrics.json").write_text(json.dumps({"iou_s_mean": iou_s, "iou_s_std": 0.1, "iou_r_mean": 0.5,
                                                           "iou_r_std": 0.2, "match_s_mean": 0.05, "match_s_std": 0.01}))
         (run_dir / "done").write_text(json.dumps({"wall_seconds": 60.0}))
-    text = table.build_table(grid_path, tmp_path / "report")
+    text = write_report(sweep.load_grid(grid_path), tmp_path / "report").read_text()
+    assert "### Low noise (-80 dB)" in text
     assert "| Profile U-Net diffusion (ours) | **0.500 ± 0.200** | **0.900 ± 0.100** | **0.050 ± 0.010** | n/a | n/a | n/a |" in text
     assert "3 of 4 runs finished; summed wall time of the runs 3.0 min" in text
-    assert (tmp_path / "report" / "table.csv").read_text().startswith("model,full_iou_r_mean")
+    assert (tmp_path / "report" / "table.csv").read_text().startswith("model,full/iou_r_mean")
 
 
 @pytest.mark.slow
@@ -213,7 +250,7 @@ def test_sigkill_mid_sweep_then_rerun(tmp_path):
 
     grid_path = toy_grid(tmp_path)
     done = tmp_path / "runs" / "h8" / "done"
-    command = [sys.executable, "-m", "radar2shape.sweep", str(grid_path)]
+    command = [sys.executable, "-m", "radar2shape.cli", "sweep", str(grid_path)]
     process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 240

@@ -2,7 +2,8 @@
 
 Defaults a user would otherwise repeat in every config: a CSV logger plus an offline wandb logger
 (no account, no network) under ``trainer.default_root_dir``, seed 0, and one-line errors for a
-missing config file or an unknown key instead of a page of usage text.
+missing config file, an unknown key or a class that is not a reconstruction model/DataModule
+instead of a page of usage text.
 """
 
 from __future__ import annotations
@@ -45,22 +46,32 @@ def _one_line(message: str) -> str:
 
 
 def run_lightning(command: str, argv: list[str]) -> int:
-    """Run one Lightning subcommand; argument errors become one line on stderr and exit code 2."""
+    """Run one Lightning subcommand; argument errors become one line on stderr and exit code 2.
+
+    Models must be :class:`ReconstructionModel` s and DataModules :class:`ReconstructionDataModule` s,
+    so a config naming any other class is refused while parsing, before anything is built.
+    """
     from jsonargparse import ArgumentError
 
-    sys.argv = sys.argv[:1]  # the args are passed explicitly; stop Lightning warning about both
+    from radar2shape.datamodule import ReconstructionDataModule
+    from radar2shape.models.base import ReconstructionModel
+
+    # Lightning relaunches DDP ranks 1.. from sys.argv, so it must hold this very command however we
+    # were started (console script or python -m); the CLI parses it from there.
+    saved_argv, sys.argv = sys.argv, [*(sys.argv[:1] or ["radar2shape"]), command, *argv]
     try:
         Radar2ShapeCLI(
-            model_class=L.LightningModule,
-            datamodule_class=L.LightningDataModule,
+            model_class=ReconstructionModel,
+            datamodule_class=ReconstructionDataModule,
             subclass_mode_model=True,
             subclass_mode_data=True,
             seed_everything_default=0,
             save_config_kwargs={"overwrite": True},
             parser_kwargs={"exit_on_error": False},
-            args=[command, *argv],
         )
     except ArgumentError as err:
         print(f"error: radar2shape {command}: {_one_line(err)}", file=sys.stderr)
         return 2
+    finally:
+        sys.argv = saved_argv
     return 0

@@ -1,14 +1,19 @@
-"""Readable reports: test metrics of finished runs -> Markdown/CSV tables in the paper's layout.
+"""Readable reports: the run folders of a grid -> Markdown/CSV tables and figures.
 
-One place formats every table (demo, Table 1, Table 2), so they all read the same way:
-``mean ± std`` per cell and the best value of each column in bold.
+One place formats every table (demo, Table 1, Table 2, monocones), so they all read the same way:
+``mean ± std`` per cell and the best value of each column in bold. A report *layout*
+(:class:`Layout`, registered in :mod:`radar2shape.report_layouts`) says which columns a table has
+and how run names map onto its rows, column groups and sections; :func:`write_report` is the one
+entry point (``radar2shape report`` and the end of ``radar2shape sweep``).
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 
@@ -72,3 +77,137 @@ def write_csv(rows: list[tuple[str, dict[str, float]]], columns: list[Column], p
         for name, metrics in rows:
             writer.writerow([name] + [metrics.get(f"{c.key}_{s}", "") for c in columns for s in ("mean", "std")])
     tmp.replace(path)
+
+
+# ---- run folders ---------------------------------------------------------------------------------
+@dataclass
+class Cell:
+    """One finished (or missing) run of a grid."""
+
+    name: str
+    run_dir: Path
+    state: str  # done | failed | missing | tested (outside the sweep)
+    record: dict = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
+
+
+def read_cell(name: str, run_dir: Path) -> Cell:
+    """The state, ``done`` record and test metrics of one run folder."""
+    if (run_dir / "done").is_file():
+        metrics_file = run_dir / "metrics.json"
+        metrics = json.loads(metrics_file.read_text()) if metrics_file.is_file() else {}
+        return Cell(name, run_dir, "done", json.loads((run_dir / "done").read_text()), metrics)
+    return Cell(name, run_dir, "failed" if (run_dir / "failed").is_file() else "missing")
+
+
+def tested_cell(run_dir: Path) -> Cell | None:
+    """A folder with a logged ``test`` but no sweep marker: its last test metrics, else None."""
+    files = sorted(run_dir.glob("test/**/metrics.csv"), key=lambda p: p.stat().st_mtime)
+    if not files:
+        return None
+    return Cell(run_dir.name, run_dir, "tested", {}, read_logged_metrics(files[-1]))
+
+
+def collect_cells(grid) -> tuple[list[Cell], list[Cell]]:
+    """The grid's runs in file order, and the ``a-b``-named folders of ``out_dir`` the grid does not
+    list but that hold a logged test (a model scored by hand, or another experiment's rows)."""
+    cells = [read_cell(run.name, grid.run_dir(run)) for run in grid.runs]
+    known = {cell.name for cell in cells}
+    extra = sorted(p for p in grid.out_dir.glob("*-*") if p.is_dir() and p.name not in known) if grid.out_dir.is_dir() else []
+    return cells, [cell for cell in map(tested_cell, extra) if cell is not None]
+
+
+def runs_table(cells: list[Cell]) -> str:
+    """Markdown list of every run: state, command and wall time (fit + test), and a summary line."""
+    lines = ["| run | state | command | fit s | test s | wall s |", "|---|---|---|---|---|---|"]
+    for cell in cells:
+        r = cell.record
+        command = r.get("command", "fit" if "fit_seconds" in r else "")
+        lines.append(f"| {cell.name} | {cell.state} | {command} | {r.get('fit_seconds', '')} | {r.get('test_seconds', '')} | {r.get('wall_seconds', '')} |")
+    total = sum(c.record.get("wall_seconds", 0.0) for c in cells)
+    lines.append(f"| **total** | | | | | **{total:.0f}** |")
+    swept = [c for c in cells if c.state != "tested"]
+    done = sum(c.state == "done" for c in swept)
+    lines += ["", f"{done} of {len(swept)} runs finished; summed wall time of the runs {total / 60:.1f} min "
+              "(fit + test, excluding the prepare steps)."]
+    return "\n".join(lines)
+
+
+def run_notes(cells: list[Cell]) -> list[str]:
+    """``- run: note`` for every run folder holding a ``note`` file (where a result came from)."""
+    notes = []
+    for cell in cells:
+        note = cell.run_dir / "note"
+        if note.is_file():
+            notes.append(f"- `{cell.name}`: {' '.join(note.read_text().split())}")
+    return notes
+
+
+# ---- layouts -------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Layout:
+    """A report layout: table columns, how run names map onto the table, and the writer.
+
+    ``parts`` names the ``-``-separated parts of a run name, from ``row`` (a table row), ``group``
+    (a column group) and ``section`` (one table each); the last part takes the rest of the name
+    (``radar2shape-full-sbr`` with ``("row", "group")`` is row ``radar2shape``, group ``full-sbr``).
+    A name with fewer parts is an auxiliary run (e.g. a Stage-1 VAE): listed with its wall time only.
+    """
+
+    name: str
+    columns: tuple[Column, ...]
+    write: Callable  # write(grid, out: Path, layout, shapes: int) -> the main Markdown file
+    parts: tuple[str, ...] = ("row", "group")
+    row_titles: dict[str, str] = field(default_factory=dict)
+    group_titles: dict[str, str] = field(default_factory=dict)
+    section_title: Callable[[str], str] = str
+
+    def split(self, run_name: str) -> dict[str, str] | None:
+        """``{"row": ..., "group": ..., ...}`` of a run name, or None for an auxiliary run."""
+        values = run_name.split("-", len(self.parts) - 1)
+        return dict(zip(self.parts, values)) if len(values) == len(self.parts) else None
+
+    def row_title(self, row: str) -> str:
+        return self.row_titles.get(row, row)
+
+    def tables(self, cells: list[Cell]) -> list[tuple[str | None, list[tuple[str, dict]], list[Column]]]:
+        """``(section, rows, columns)`` per section in run order; rows are ``(title, metrics)`` with
+        metrics keyed ``<group>/<metric>_mean|_std`` (``<metric>_...`` in a layout without groups)."""
+        sections: dict[str | None, dict] = {}
+        groups: dict[str | None, list[str]] = {}
+        for cell in cells:
+            where = self.split(cell.name)
+            if where is None:
+                continue
+            section, group = where.get("section"), where.get("group")
+            rows = sections.setdefault(section, {})
+            row = rows.setdefault(where["row"], {})
+            section_groups = groups.setdefault(section, [])
+            section_groups += [group] if group not in section_groups else []
+            prefix = f"{group}/" if group is not None else ""
+            row.update({f"{prefix}{key}": value for key, value in cell.metrics.items()})
+        out = []
+        for section, rows in sections.items():
+            columns = [Column(f"{g}/{c.key}", f"{self.group_titles.get(g, g)}: {c.header}", c.higher_is_better, c.digits)
+                       if g is not None else c for g in groups[section] for c in self.columns]
+            out.append((section, [(self.row_title(r), metrics) for r, metrics in rows.items()], columns))
+        return out
+
+
+def get_layout(name: str) -> Layout:
+    from radar2shape.report_layouts import LAYOUTS
+
+    if name not in LAYOUTS:
+        from radar2shape.errors import UserInputError
+
+        raise UserInputError(f"unknown report layout {name!r} (expected one of {sorted(LAYOUTS)})")
+    return LAYOUTS[name]
+
+
+def write_report(grid, out: str | Path | None = None, layout: str | None = None, shapes: int = 4) -> Path:
+    """Write ``grid``'s report in ``layout`` (default: the grid's ``report``, else ``table1``) to
+    ``out`` (default ``reports/<grid name>``); returns the main Markdown file."""
+    chosen = get_layout(layout or grid.report or "table1")
+    out = Path(out) if out else Path("reports") / grid.name
+    out.mkdir(parents=True, exist_ok=True)
+    return chosen.write(grid, out, chosen, shapes)

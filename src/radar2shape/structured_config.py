@@ -12,6 +12,7 @@ Schemas are plain dataclasses (``Optional[...]``, ``list``, ``dict``, nested dat
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -44,14 +45,16 @@ def structured(schema: type[T], values: Any, source: str) -> T:
     Unknown keys and values of the wrong type raise one line: ``SOURCE: key 'a.b': problem``.
     """
     from omegaconf import OmegaConf
-    from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationError
+    from omegaconf.errors import ConfigKeyError, MissingMandatoryValue, OmegaConfBaseException, ValidationError
 
     if values is None:
         values = {}
     if not isinstance(values, dict):
         raise UserInputError(f"{source}: expected a mapping of keys at the top level, got {type(values).__name__}")
     try:
-        merged = OmegaConf.merge(OmegaConf.structured(schema), OmegaConf.create(values))
+        base = OmegaConf.structured(schema)
+        _writable(base)
+        merged = OmegaConf.merge(base, OmegaConf.create(values))
         return OmegaConf.to_object(merged)
     except UserInputError as err:
         raise UserInputError(f"{source}: {err}") from None
@@ -60,7 +63,23 @@ def structured(schema: type[T], values: Any, source: str) -> T:
         message = str(err).splitlines()[0]
         if isinstance(err, ConfigKeyError):
             message = f"unknown key (expected one of {_field_names(schema, key)})"
+        elif isinstance(err, MissingMandatoryValue):
+            missing = re.search(r"missing mandatory value: ([\w.]+)", str(err))
+            key = missing.group(1) if missing and not key else key
+            raise UserInputError(f"{source}: missing '{key}' (required)") from None
         raise UserInputError(f"{source}: key '{key}': {message}") from None
+
+
+def _writable(node) -> None:
+    """Clear the read-only flag frozen dataclasses set, so a file can fill them (the instance stays frozen)."""
+    from omegaconf import DictConfig, OmegaConf
+
+    OmegaConf.set_readonly(node, None)
+    if isinstance(node, DictConfig):
+        for key in node.keys():
+            child = node._get_node(key)
+            if isinstance(child, DictConfig):
+                _writable(child)
 
 
 def load_structured(schema: type[T], path: str | Path) -> T:

@@ -1,4 +1,4 @@
-"""Run a grid of experiments one after another: ``python -m radar2shape.sweep conf/grid/NAME.yaml``.
+"""Grids of experiments: the schema of ``conf/grid/*.yaml`` and the resumable runner behind ``radar2shape sweep``.
 
 A grid file lists runs; each run is ``fit`` then (optionally) ``test`` through
 :func:`radar2shape.cli.main`, so a run is exactly what a person would type; a run with
@@ -15,16 +15,17 @@ execute in file order). A run whose dependency is not done fails with a one-line
 run is redone when a dependency finished after it (the dependency was redone) or when its
 command in the grid changed (``run.yaml`` holds the arguments it ran with).
 
-Grid file (YAML)::
+Grid file (YAML, schema :class:`GridSpec`)::
 
     out_dir: runs/NAME                 # required
     configs: [conf/experiment/a.yaml]  # --config files for every run, in order
     overrides: {trainer.max_epochs: 5} # --key=value for every run
-    test: true                         # run `test` on the last checkpoint (default true)
+    test: true                         # run `test` on the last checkpoint of fit runs (default true)
     threads: 1                         # optional: torch CPU threads (a busy machine runs faster with 1)
     prepare:                           # optional: radar2shape commands run first, every time
       - [build-data, --config, conf/data/x.yaml, --out, data/x]   #   (so they must resume cheaply)
-    report: scripts/table.py           # optional: `python SCRIPT --grid GRID_FILE` after the runs
+    report: table1                     # optional: report layout (radar2shape.report_layouts) written
+                                       #   after the runs; `radar2shape report` defaults to table1
     matrix:                            # optional: cartesian product; names joined with "-"
       model:                           #   axis -> value name -> {configs, overrides}
         unet: {overrides: {model: conf/model/profile_unet.yaml}}
@@ -39,29 +40,60 @@ An override's value may be a config file path (``model: conf/model/x.yaml``): js
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import json
 import os
 import re
 import shutil
-import subprocess
 import sys
 import time
 import traceback
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Optional
 
 import yaml
 
 from radar2shape.errors import UserInputError
+from radar2shape.structured_config import read_yaml, structured
 
 DONE = "done"
-_NAME = re.compile(r"^[A-Za-z0-9_.=+-]+$")
-_GRID_KEYS = {"out_dir", "configs", "overrides", "test", "threads", "prepare", "report", "matrix", "runs"}
-_PART_KEYS = {"configs", "overrides"}
+GRID_DIR = Path("conf/grid")
 COMMANDS = ("fit", "test")
+_NAME = re.compile(r"^[A-Za-z0-9_.=+-]+$")
+
+
+@dataclass
+class PartSpec:
+    """What a matrix value adds to a run: ``--config`` files and ``--key=value`` overrides."""
+
+    configs: list[str] = field(default_factory=list)
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class RunSpec(PartSpec):
+    """An explicit run of a grid; ``command: test`` scores without fitting."""
+
+    name: str = ""
+    command: str = "fit"
+
+
+@dataclass
+class GridSpec:
+    """The top level of a grid file. Matrix values and runs are checked one by one (see
+    :func:`load_grid`) so an error names the entry it is in."""
+
+    out_dir: str = "???"
+    configs: list[str] = field(default_factory=list)
+    overrides: dict[str, Any] = field(default_factory=dict)
+    test: bool = True
+    threads: Optional[int] = None
+    prepare: list[list[Any]] = field(default_factory=list)
+    report: Optional[str] = None
+    matrix: dict[str, dict[str, Any]] = field(default_factory=dict)
+    runs: list[Any] = field(default_factory=list)
 
 
 @dataclass
@@ -82,7 +114,7 @@ class Run:
 
 @dataclass
 class Grid:
-    """A parsed grid file."""
+    """A loaded and checked grid file."""
 
     path: Path
     out_dir: Path
@@ -91,6 +123,10 @@ class Grid:
     prepare: list[list[str]] = field(default_factory=list)
     report: str | None = None
     threads: int | None = None
+
+    @property
+    def name(self) -> str:
+        return self.path.stem
 
     def run_dir(self, run: Run) -> Path:
         return self.out_dir / run.name
@@ -115,54 +151,48 @@ def _format(value) -> str:
     return "null" if value is None else str(value)
 
 
-def _part(spec, where: str, extra_keys: frozenset = frozenset({"name"})) -> tuple[list[str], dict]:
-    """The ``configs`` and ``overrides`` of one grid entry, checked (``extra_keys`` are read by the caller)."""
-    spec = spec or {}
-    if not isinstance(spec, dict) or set(spec) - _PART_KEYS - extra_keys:
-        raise UserInputError(f"{where}: expected a mapping with keys {sorted(_PART_KEYS | extra_keys)}, got {spec!r}")
-    configs = spec.get("configs") or []
-    overrides = spec.get("overrides") or {}
-    if not isinstance(configs, list) or not isinstance(overrides, dict):
-        raise UserInputError(f"{where}: 'configs' must be a list and 'overrides' a mapping")
-    return [str(c) for c in configs], dict(overrides)
+def grid_path(grid: str | Path) -> Path:
+    """A grid name (``table1`` -> ``conf/grid/table1.yaml``) or a YAML path, which must exist."""
+    path = Path(grid)
+    if path.suffix not in (".yaml", ".yml"):
+        path = GRID_DIR / f"{grid}.yaml"
+    if not path.is_file():
+        raise UserInputError(f"grid file not found: {path} (give a name under {GRID_DIR}/ or a grid YAML file)")
+    return path
 
 
-def _matrix_runs(matrix: dict, where: str) -> list[Run]:
+def _matrix_runs(matrix: dict[str, dict[str, Any]], where: str) -> list[Run]:
     """Cartesian product of the matrix axes, in file order; later axes override earlier ones."""
-    if not isinstance(matrix, dict) or not all(isinstance(v, dict) and v for v in matrix.values()):
-        raise UserInputError(f"{where}: 'matrix' must map each axis to a non-empty mapping of named values")
+    if not matrix:
+        return []
+    axes = []
+    for axis, values in matrix.items():
+        if not values:
+            raise UserInputError(f"{where}: matrix.{axis}: expected a non-empty mapping of named values")
+        axes.append([(name, structured(PartSpec, spec, f"{where}: matrix.{axis}.{name}")) for name, spec in values.items()])
     runs = []
-    for combo in itertools.product(*(list(axis.items()) for axis in matrix.values())):
+    for combo in itertools.product(*axes):
         run = Run(name="-".join(str(name) for name, _ in combo))
-        for (value_name, spec), axis in zip(combo, matrix):
-            configs, overrides = _part(spec, f"{where}: matrix.{axis}.{value_name}")
-            run.configs += configs
-            run.overrides.update(overrides)
+        for _, part in combo:
+            run.configs += part.configs
+            run.overrides.update(part.overrides)
         runs.append(run)
     return runs
 
 
-def load_grid(path: str | Path) -> Grid:
-    """Parse and check a grid file; raises :class:`UserInputError` naming the problem."""
-    path = Path(path)
-    if not path.is_file():
-        raise UserInputError(f"grid file not found: {path}")
-    spec = yaml.safe_load(path.read_text()) or {}
-    if not isinstance(spec, dict) or "out_dir" not in spec:
-        raise UserInputError(f"{path}: expected a mapping with at least 'out_dir'")
-    unknown = set(spec) - _GRID_KEYS
-    if unknown:
-        raise UserInputError(f"{path}: unknown keys {sorted(unknown)}; allowed: {sorted(_GRID_KEYS)}")
-    configs, overrides = _part({k: spec.get(k) for k in _PART_KEYS}, str(path))
-    runs = _matrix_runs(spec["matrix"], str(path)) if spec.get("matrix") else []
-    for i, entry in enumerate(spec.get("runs") or []):
-        if not isinstance(entry, dict) or "name" not in entry:
+def load_grid(grid: str | Path) -> Grid:
+    """Read a grid (name or path) on :class:`GridSpec` and check what types cannot say: run names
+    unique and path-safe, commands known, dependencies on earlier runs, a known report layout."""
+    path = grid_path(grid)
+    spec = structured(GridSpec, read_yaml(path), str(path))
+    runs = _matrix_runs(spec.matrix, str(path))
+    for i, entry in enumerate(spec.runs):
+        run = structured(RunSpec, entry, f"{path}: runs[{i}]")
+        if not run.name:
             raise UserInputError(f"{path}: runs[{i}] needs a 'name'")
-        run_configs, run_overrides = _part(entry, f"{path}: runs[{i}]", frozenset({"name", "command"}))
-        command = entry.get("command", "fit")
-        if command not in COMMANDS:
-            raise UserInputError(f"{path}: runs[{i}] ({entry['name']}): command must be one of {list(COMMANDS)}, got {command!r}")
-        runs.append(Run(str(entry["name"]), run_configs, run_overrides, command))
+        if run.command not in COMMANDS:
+            raise UserInputError(f"{path}: runs[{i}] ({run.name}): command must be one of {list(COMMANDS)}, got {run.command!r}")
+        runs.append(Run(run.name, list(run.configs), dict(run.overrides), run.command))
     if not runs:
         raise UserInputError(f"{path}: no runs (give 'matrix' and/or 'runs')")
     names = [run.name for run in runs]
@@ -173,16 +203,19 @@ def load_grid(path: str | Path) -> Grid:
     if duplicates:
         raise UserInputError(f"{path}: duplicate run names {duplicates}")
     for run in runs:
-        run.configs = configs + run.configs
-        run.overrides = {**overrides, **run.overrides}
-    prepare = spec.get("prepare") or []
-    if not isinstance(prepare, list) or not all(isinstance(c, list) and c for c in prepare):
-        raise UserInputError(f"{path}: 'prepare' must be a list of commands, each a list like [build-data, --config, ...]")
-    prepare = [[str(part) for part in command] for command in prepare]
-    threads = spec.get("threads")
-    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
-        raise UserInputError(f"{path}: 'threads' must be a positive integer, got {threads!r}")
-    grid = Grid(path, Path(spec["out_dir"]), runs, bool(spec.get("test", True)), prepare, spec.get("report"), threads)
+        run.configs = list(spec.configs) + run.configs
+        run.overrides = {**spec.overrides, **run.overrides}
+    if any(not command for command in spec.prepare):
+        raise UserInputError(f"{path}: key 'prepare': each command must be a non-empty list like [build-data, --config, ...]")
+    if spec.threads is not None and spec.threads < 1:
+        raise UserInputError(f"{path}: key 'threads': expected a positive integer, got {spec.threads}")
+    if spec.report is not None:
+        from radar2shape.report_layouts import LAYOUTS
+
+        if spec.report not in LAYOUTS:
+            raise UserInputError(f"{path}: key 'report': unknown report layout {spec.report!r} (expected one of {sorted(LAYOUTS)})")
+    prepare = [[_format(part) for part in command] for command in spec.prepare]
+    grid = Grid(path, Path(spec.out_dir), runs, spec.test, prepare, spec.report, spec.threads)
     for i, run in enumerate(runs):
         earlier = set(names[:i])
         for need in grid.needs(run):
@@ -320,9 +353,11 @@ def run_grid(grid: Grid, only: list[str] | None = None, keep_going: bool = False
 
 
 def run_report(grid: Grid) -> None:
-    """Run the grid's report script, if any, as ``python SCRIPT --grid GRID_FILE``."""
+    """Write the grid's report layout, if it names one, to ``reports/<grid name>/``."""
     if grid.report:
-        subprocess.run([sys.executable, grid.report, "--grid", str(grid.path)], check=True)
+        from radar2shape.reporting import write_report
+
+        print(f"[sweep] report: {write_report(grid)}", flush=True)
 
 
 @contextmanager
@@ -339,35 +374,3 @@ def torch_threads(threads: int | None):
         yield
     finally:
         torch.set_num_threads(previous)
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m radar2shape.sweep", description=__doc__.splitlines()[0])
-    parser.add_argument("grid", help="grid YAML file, e.g. conf/grid/rollsym.yaml")
-    parser.add_argument("--only", nargs="+", help="run only these run names")
-    parser.add_argument("--keep-going", action="store_true", help="continue after a failed run")
-    parser.add_argument("--list", action="store_true", help="print each run's name and fit arguments, run nothing")
-    parser.add_argument("--threads", type=int, help="torch CPU threads, overriding the grid's 'threads'")
-    args = parser.parse_args(argv)
-    try:
-        grid = load_grid(args.grid)
-        if args.list:
-            for run in grid.runs:
-                state = "todo" if not is_done(grid.run_dir(run)) or stale_because(grid, run) else "done"
-                print(f"{run.name} [{state}]: {run.command} {' '.join(run.args(grid.run_dir(run) / run.command))}")
-            return 0
-        start = time.perf_counter()
-        with torch_threads(args.threads or grid.threads):
-            run_prepare(grid)
-            failed = run_grid(grid, args.only, args.keep_going)
-    except UserInputError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    print(f"[sweep] grid finished in {time.perf_counter() - start:.1f} s, {failed} failed", flush=True)
-    if not failed:
-        run_report(grid)
-    return 1 if failed else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

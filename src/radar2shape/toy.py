@@ -92,32 +92,21 @@ class ToySphereDataModule(ReconstructionDataModule):
 class ToySphereRegressor(ReconstructionModel):
     """An MLP from the sphere's dB-over-frequency radar to its radius; reconstructs an icosphere."""
 
-    def __init__(self, num_freq: int = 16, hidden: int = 64, lr: float = 3e-3):
+    optimizer_class = torch.optim.Adam
+
+    def __init__(self, num_freq: int = 16, mlp_hidden: int = 64, lr: float = 3e-3):
         super().__init__()
         self.save_hyperparameters()
         self.net = nn.Sequential(
-            nn.Linear(num_freq, hidden), nn.ReLU(), nn.Linear(hidden, hidden), nn.ReLU(), nn.Linear(hidden, 1)
+            nn.Linear(num_freq, mlp_hidden), nn.ReLU(), nn.Linear(mlp_hidden, mlp_hidden), nn.ReLU(), nn.Linear(mlp_hidden, 1)
         )
 
     def forward(self, radar: torch.Tensor) -> torch.Tensor:
         return 0.1 + 0.35 * torch.sigmoid(self.net(radar).squeeze(-1))
 
-    def _loss(self, batch: dict) -> torch.Tensor:
-        return torch.mean(torch.abs(self(batch["radar"]) - batch["radius"]))
-
-    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
-        loss = self._loss(batch)
-        self.log("train/loss", loss, prog_bar=True)
-        return loss
-
-    def validation_step(self, batch: dict, batch_idx: int) -> None:
-        self.log("val/radius_l1", self._loss(batch), prog_bar=True)
-
-    def test_step(self, batch: dict, batch_idx: int) -> None:
-        self.log("test/radius_l1", self._loss(batch))
-
-    def configure_optimizers(self):
-        return torch.optim.Adam(self.parameters(), lr=self.hparams.lr)
+    def losses(self, batch: dict) -> dict[str, torch.Tensor]:
+        radius_l1 = torch.mean(torch.abs(self(batch["radar"]) - batch["radius"]))
+        return {"loss": radius_l1, "radius_l1": radius_l1}
 
     @torch.no_grad()
     def reconstruct(self, batch: dict) -> list[Reconstruction]:

@@ -11,7 +11,7 @@ from radar2shape.models.sdf_vae import SDFVAE
 
 STAGE1 = dict(resolutions=[8], hash_features=2, log2_hashmap_size=10, width=16, n_blocks=1, plane_channels=8,
               unet_channels=8, unet_max_depth=1, latent_dim=16, vae_hidden=8, mlp_hidden=32, mlp_layers=2, mesh_resolution=32)
-STAGE2 = dict(n_freq=RADAR_SHAPE[-1], radar_blocks=2, dim=32, n_layers=2, n_heads=4, encoder_depth=18, encoder_width=0.125,
+STAGE2 = dict(num_freq=RADAR_SHAPE[-1], radar_blocks=2, dim=32, n_layers=2, n_heads=4, encoder_depth=18, encoder_width=0.125,
               num_steps=100, sample_steps=20, mesh_resolution=32)
 
 

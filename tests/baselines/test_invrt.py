@@ -10,7 +10,7 @@ from baselines.invrt import InvRT
 from models.test_profile_diffusion import N_ASPECT, N_FREQ, frusta_batch, mean_section_iou, one_thread, train  # noqa: F401
 from radar2shape.errors import UserInputError
 
-TINY = dict(num_aspect=N_ASPECT, num_freq=N_FREQ, d_model=64, n_layers=2, n_heads=4)
+TINY = dict(num_aspect=N_ASPECT, num_freq=N_FREQ, dim=64, n_layers=2, n_heads=4)
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +52,7 @@ def test_overfits_eight_profiles(batch):
     torch.manual_seed(0)
     start = time.perf_counter()
     model = InvRT(**TINY)
-    losses = train(model, batch, model.training_loss, steps=300)
+    losses = train(model, batch, lambda b: model.losses(b)["loss"], steps=300)
     iou = mean_section_iou(model, batch)
     print(f"InvRT overfit: IoU-S {iou:.3f}, loss {losses[0]:.3f} -> {losses[-1]:.3f} in {time.perf_counter() - start:.0f} s")
     assert losses[-1] < 0.3 * losses[0]

@@ -9,8 +9,8 @@ from baseline_data import RADAR_SHAPE, mean_scores, one_thread, shape_batch, tra
 from baselines import LIST
 from baselines.list_net import radar_coordinates
 
-TINY = dict(n_freq=RADAR_SHAPE[-1], feature_dim=64, encoder_width=0.125, coarse_points=128, cloud_dim=32, local_dim=16,
-            hidden=128, n_hidden=3, mesh_resolution=32)
+TINY = dict(num_freq=RADAR_SHAPE[-1], feature_dim=64, encoder_width=0.125, coarse_points=128, cloud_dim=32, local_dim=16,
+            mlp_hidden=128, mlp_layers=3, mesh_resolution=32)
 
 
 @pytest.fixture(scope="module")

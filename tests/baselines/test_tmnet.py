@@ -7,8 +7,8 @@ from baseline_data import RADAR_SHAPE, mean_scores, one_thread, shape_batch, sub
 from baselines import TMNet
 from baselines.template_mesh import icosphere, sample_faces, unique_edges
 
-TINY = dict(n_freq=RADAR_SHAPE[-1], feature_dim=64, encoder_width=0.125, sphere_level=3, hidden=128, n_hidden=2,
-            n_samples=512, prune_threshold=0.06)
+TINY = dict(num_freq=RADAR_SHAPE[-1], feature_dim=64, encoder_width=0.125, sphere_level=3, mlp_hidden=128, mlp_layers=2,
+            chamfer_samples=512, prune_threshold=0.06)
 
 
 @pytest.fixture(scope="module")

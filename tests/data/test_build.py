@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import signal
 import time
 
@@ -11,7 +12,7 @@ import trimesh
 from conftest import REPO, TINY, run_builder, tiny_config
 
 from data_modules.build import build_dataset, finalize
-from data_modules.config import load_build_config
+from data_modules.config import config_from_dict, load_build_config
 from data_modules.manifest import read_manifest
 from data_modules.records import RECORD_KEYS, read_record, record_path
 from radar2shape.errors import UserInputError
@@ -167,11 +168,11 @@ def test_folder_build_handles_a_two_million_face_mesh(tmp_path):
 @pytest.mark.parametrize(
     "text, message",
     [
-        ("family: parts\nnum: 3\nbogus: 1\n", "unknown key.*bogus"),
+        ("family: parts\nnum: 3\nbogus: 1\n", "key 'bogus': unknown key"),
         ("num: 3\n", "missing 'family'"),
         ("family: parts\n", "'num' must be"),
         ("family: nope\nnum: 3\n", "unknown family 'nope'"),
-        ("family: parts\nnum: 3\nsampling: {sdf_points: 3}\n", "unknown key.*sdf_points.*sampling"),
+        ("family: parts\nnum: 3\nsampling: {sdf_points: 3}\n", "key 'sampling.sdf_points': unknown key"),
         ("family: folder\nfamily_options: {root: /does/not/exist}\n", "not a directory"),
     ],
 )
@@ -180,6 +181,63 @@ def test_config_errors_name_the_field(tmp_path, text, message):
     path.write_text(text)
     with pytest.raises(UserInputError, match=message or "family"):
         build_dataset(load_build_config(path), tmp_path / "out", progress=False)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("family: parts\nnum: 3\nseed: zero\n", r"key 'seed': .*'zero'.*Integer"),
+        ("family: parts\nnum: sixty\n", r"key 'num': .*'sixty'.*Integer"),
+        ("family: parts\nnum: 2.5\n", r"key 'num': .*'2.5'.*Integer"),
+        ("family: parts\nnum: 0\n", r"num: expected a positive number of shapes, got 0"),
+        ("family: parts\nnum: 3\nsplits: train\n", r"key 'splits': Cannot assign str"),
+        ("family: parts\nnum: 3\nsplits: {train: 0, val: 0, test: 0}\n", r"splits: .*positive sum"),
+        ("family: parts\nnum: 3\nsplits: {train: 1, val: -1}\n", r"splits: .*non-negative"),
+        ("family: parts\nnum: 3\nfloor_db: quiet\n", r"key 'floor_db': .*'quiet'.*Float"),
+        ("family: parts\nnum: [3\n", r"YAML syntax error \(line 3, column 1\)"),
+        ("- family\n- parts\n", r"expected a mapping of config keys, got list"),
+        ("family: nope\nnum: 3\n", r"unknown family 'nope'; choose from \['folder', 'frusta', 'monocone', 'parts'\]"),
+        ("family: parts\nnum: 3\nfamily_options: {bogus: 1}\n", r"family_options: unknown key.*'bogus'.*'parts'.*segments"),
+        ("family: parts\nnum: 3\nradar: {aspect_deg: {start: 0, stop: 180, count: 0}}\n",
+         r"radar: aspect_deg.count: expected a positive integer, got 0"),
+        ("family: parts\nnum: 3\nradar: conf/radar/nope.yaml\n", r"radar config .*nope.yaml not found"),
+        ("family: folder\nfamily_options: {root: /does/not/exist}\n", r"folder.root: /does/not/exist is not a directory"),
+        ("family: parts\nnum: 3\nsampling: {surface: -5}\n", r"sampling.surface: expected a positive count, got -5"),
+        ("family: parts\nnum: 3\nsampling: {sdf: zero}\n", r"key 'sampling.sdf': .*Integer"),
+        ("family: parts\nnum: 3\nmesh: {face_budget: 0}\n", r"mesh.face_budget: expected a positive count"),
+        ("family: parts\nnum: 3\nsimulator: {method: fdtd}\n", r"simulator.method: expected 'po' or 'sbr'"),
+        ("family: parts\nnum: 3\nsimulator: {bounces: 3}\n", r"simulator: key 'bounces': unknown key"),
+    ],
+)
+def test_bad_configs_give_one_line_and_leave_nothing_behind(tmp_path, capsys, text, message):
+    from radar2shape.cli import main
+
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    out = tmp_path / "out"
+    assert main(["build-data", "--config", str(path), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"error: {path}: "), err
+    assert re.search(message, err), err
+    assert not out.exists()
+
+
+def test_num_on_the_command_line_is_checked_like_the_file(tmp_path, capsys):
+    from radar2shape.cli import main
+
+    out = tmp_path / "out"
+    assert main(["build-data", "--config", str(TINY["frusta"]), "--out", str(out), "--num", "0"]) == 2
+    assert "num: expected a positive number of shapes, got 0" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_the_manifest_config_round_trips_through_the_schema(tmp_path):
+    config = tiny_config("parts", 4)
+    data = config.to_dict()
+    assert config_from_dict(data) == config and config_from_dict(data).to_dict() == data
+    assert isinstance(config.sampling.sdf_near_sigmas, tuple)
+    assert data["radar"]["aspect_deg"] == {"start": 0.0, "stop": 180.0, "count": 16}  # conf/radar/tiny.yaml
+    assert data["simulator"] == {} and data["num"] == 4 and data["splits"] == {"train": 0.6, "val": 0.2, "test": 0.2}
 
 
 def test_command_prints_a_summary_and_names_a_missing_config(tmp_path, capsys):

@@ -12,6 +12,8 @@ from jsonargparse import ArgumentParser
 from data_modules import ProfileDataModule, ShapeDataModule
 from data_modules.radar_transform import RadarTransform
 from radar2shape.errors import UserInputError
+from radar2shape.radar import RadarGrid
+from radar2shape.radar.spec import RadarSpec
 
 SMALL_POINTS = {"train": {"surface": 64, "sdf": 128}, "val": {"surface": 64, "sdf": 128, "eval": 100, "occ": 200},
                 "test": {"surface": 64, "sdf": 128, "eval": 100, "occ": 200}}
@@ -86,7 +88,8 @@ def test_batches_do_not_depend_on_the_number_of_workers(parts_dataset):
 
 @pytest.mark.parametrize("level", [-60.0, -40.0])
 def test_noise_has_the_stated_power(level):
-    transform = RadarTransform(mean=0.0, std=1.0, floor_db=-400.0, observability="full", noise_db=level)
+    spec = RadarSpec(RadarGrid(np.zeros(64), np.zeros(64), np.ones(64)), db_mean=0.0, db_std=1.0, floor_db=-400.0)
+    transform = RadarTransform(spec, observability="full", noise_db=level)
     radar, _ = transform(np.zeros((64, 64, 64), np.complex64), np.random.default_rng(0), 0)
     power = np.mean(10.0 ** (radar.astype(np.float64) / 10.0))
     assert power == pytest.approx(10.0 ** (level / 10.0), rel=0.03)
@@ -101,7 +104,9 @@ def test_noise_is_added_before_the_db_conversion(parts_dataset):
 def test_statistics_for_another_floor_are_computed_once_and_cached(parts_dataset):
     dm = _module(parts_dataset, floor_db=-60.0)
     assert (parts_dataset / "radar_stats_floor-60.json").is_file()
-    assert dm.stats["floor_db"] == -60.0 and dm.stats != _module(parts_dataset).stats
+    spec, default = dm.radar_spec, _module(parts_dataset).radar_spec
+    assert spec.floor_db == -60.0 and default.floor_db == -100.0 and spec.db_mean > default.db_mean
+    assert dm.transform("train").spec is spec
 
 
 def test_train_records_give_raw_complex_radar(parts_dataset):
@@ -135,3 +140,17 @@ def test_lightning_cli_data_configs_parse():
         parser = ArgumentParser()
         parser.add_subclass_arguments(L.LightningDataModule, "data")
         assert parser.parse_args([f"--data={path}"]).data.class_path.startswith("data_modules.")
+
+
+def test_radar_spec_is_the_manifest_grid_and_train_statistics(parts_dataset, frusta_dataset):
+    dm = _module(parts_dataset, observability="full")
+    spec, manifest = dm.radar_spec, dm.manifest
+    np.testing.assert_array_equal(spec.grid.freq_hz, manifest["radar"]["freq_hz"])
+    assert spec.grid.shape == dm.radar_shape == (16, 16, 16) and not spec.roll_symmetric
+    assert (spec.db_mean, spec.db_std, spec.floor_db) == (manifest["radar_stats"]["mean"],
+                                                         manifest["radar_stats"]["std"], -100.0)
+    # the batch radar is exactly the spec's normalisation of the stored response
+    raw = dm.records("test")[0]["radar"]
+    np.testing.assert_array_equal(dm.dataset("test")[0]["radar"].numpy(), spec.normalise(spec.to_db(raw)))
+    profile = _module(frusta_dataset, ProfileDataModule).radar_spec
+    assert profile.roll_symmetric and profile.grid.roll_rad.tolist() == [0.0] and profile.input_shape == (16, 16)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from radar2shape.metrics.aggregate import ChamferDistance, FScore, MeanStd, ReconstructionMetrics, VolumetricIoU
+from radar2shape.metrics.aggregate import ChamferDistance, FScore, MeanStd, VolumetricIoU, pool_scores
 
 pytestmark = pytest.mark.filterwarnings("ignore:The ``compute`` method")  # computing empty metrics is tested
 
@@ -67,12 +67,10 @@ def test_names_and_directions():
     assert FScore().name == "fscore_1pct" and FScore(tau=0.02).name == "fscore_2pct"
 
 
-def test_collection_updates_all_three_from_score_dicts():
-    metrics = ReconstructionMetrics(num_classes=2)
+def test_pooling_score_dicts_gives_every_name_its_statistics():
     scores = [{"chamfer_l2_x1e3": 1.0, "iou": 0.5, "fscore_1pct": 0.2}, {"chamfer_l2_x1e3": 3.0, "iou": math.nan, "fscore_1pct": 0.4}]
-    metrics.update(scores, [0, 1])
-    out = metrics.compute()
+    out = pool_scores(scores, [0, 1], num_classes=2)
+    assert list(out) == ["chamfer_l2_x1e3", "iou", "fscore_1pct"]
     assert out["chamfer_l2_x1e3"]["mean"].item() == 2.0 and out["iou"]["count"].item() == 1
     assert out["fscore_1pct"]["class_mean"].tolist() == pytest.approx([0.2, 0.4])
-    metrics.reset()
-    assert metrics.compute()["iou"]["count"].item() == 0
+    assert pool_scores([], names=["iou"])["iou"]["count"].item() == 0

@@ -18,7 +18,7 @@ from radar2shape.cli import main as cli_main
 from radar2shape.commands.evaluate import load_prediction
 from radar2shape.geometry.mesh_io import load_mesh
 from radar2shape.geometry.query import contains, sample_surface
-from radar2shape.metrics import ChamferDistance, FScore, ReconstructionEvaluator, VolumetricIoU
+from radar2shape.metrics import ChamferDistance, FScore, ReconstructionEvaluator, ShapeScorer, VolumetricIoU
 from radar2shape.metrics.functional import CHAMFER_WORST, occupancy_points
 from radar2shape.metrics.scoring import score_reconstruction
 from radar2shape.models.base import Reconstruction, ReconstructionModel
@@ -76,7 +76,7 @@ class Data(L.LightningDataModule):
 
 
 def run(tmp_path, records, predictions, stage="test", **options):
-    evaluator = ReconstructionEvaluator(num_points=N_POINTS, num_saved=2, seed=0, **options)
+    evaluator = ReconstructionEvaluator([ShapeScorer(N_POINTS, seed=0)], num_saved=2, **options)
     trainer = L.Trainer(
         default_root_dir=tmp_path, logger=False, accelerator="cpu", devices=1, callbacks=[evaluator],
         enable_progress_bar=False, enable_model_summary=False, enable_checkpointing=False,
@@ -158,7 +158,7 @@ def test_cli_callback_and_metric_classes_agree_on_one_pair(tmp_path, capsys):
         "label": torch.tensor(0),
         "index": torch.tensor(0),
     }
-    evaluator = ReconstructionEvaluator(num_points=N_POINTS, seed=seed, num_saved=0)
+    evaluator = ReconstructionEvaluator([ShapeScorer(N_POINTS, seed=seed)], num_saved=0)
     trainer = L.Trainer(default_root_dir=tmp_path, logger=False, callbacks=[evaluator], enable_progress_bar=False, enable_model_summary=False)
     trainer.test(Known([pred]), dataloaders=DataLoader([batch], batch_size=1))
     callback = {name: values["mean"] for name, values in evaluator.results["test"].items()}

@@ -77,9 +77,9 @@ def test_bad_configuration(tmp_path):
 
 def test_cli_defaults_do_not_resize_the_base(base):
     """LightningCLI passes RadarDiffusion's defaults (dim 512, ...) through **hparams."""
-    _, path = base
-    model = LoRARadarDiffusion(base_ckpt=path, dim=512, n_layers=8, stage1_hparams=None, radar_meta=None)
-    assert model.hparams.dim == 32 and model.hparams.radar_meta is not None
+    base_model, path = base
+    model = LoRARadarDiffusion(base_ckpt=path, dim=512, n_layers=8, stage1_hparams=None)
+    assert model.hparams.dim == 32 and model.radar_spec == base_model.radar_spec is not None
 
 
 def test_base_trained_through_the_cli_loads(base, tmp_path):

@@ -15,6 +15,8 @@ import torch
 from radar2shape.errors import UserInputError
 from radar2shape.models.radar_diffusion import RadarDiffusion, load_latent_cache
 from radar2shape.models.sdf_vae import SDFVAE
+from radar2shape.radar import RadarGrid
+from radar2shape.radar.spec import RadarSpec
 
 TINY_STAGE1 = dict(
     resolutions=[4, 8], hash_features=2, log2_hashmap_size=8, width=16, n_blocks=1, plane_channels=8,
@@ -68,7 +70,7 @@ def stage1_ckpt(tmp_path_factory) -> str:
 
 def tiny_model(stage1_ckpt: str, **overrides) -> RadarDiffusion:
     torch.manual_seed(0)
-    return RadarDiffusion(stage1_ckpt=stage1_ckpt, **{"n_freq": 8, **TINY_STAGE2, **overrides})
+    return RadarDiffusion(stage1_ckpt=stage1_ckpt, **{"num_freq": 8, **TINY_STAGE2, **overrides})
 
 
 def radar_batch(n: int, seed: int = 0) -> dict:
@@ -105,6 +107,19 @@ def test_causal_mask_blocks_later_tokens(stage1_ckpt):
     assert changed_levels(batch["radar"], coarse) == [True, True]
 
 
+def test_eval_losses_repeat_per_batch_index(stage1_ckpt):
+    """Validation noise is seeded by the batch index: the same every epoch, different across batches."""
+    model = tiny_model(stage1_ckpt)
+    with torch.no_grad():
+        model.latent_out.weight.normal_(0.0, 0.2)  # a non-zero output, so the loss depends on the noise
+    batch = dict(radar_batch(2), **{k: v for k, v in sphere_batch().items() if k == "surface_points"})
+    with torch.no_grad():
+        first, again, other = (model.eval_losses(batch, i)["loss"] for i in (3, 3, 4))
+        training = model.losses(batch)["loss"]
+    assert set(model.eval_losses(batch, 3)) == {"loss"}
+    assert torch.equal(first, again) and not torch.equal(first, other) and not torch.equal(first, training)
+
+
 def test_latents_are_learned_from_radar(stage1_ckpt, tmp_path):
     """Eight radar fingerprints -> eight latents (from a cache file): samples land on their own latent."""
     gen = torch.Generator().manual_seed(1)
@@ -123,7 +138,7 @@ def test_latents_are_learned_from_radar(stage1_ckpt, tmp_path):
         model.diffusion_loss(batch).backward()
         optimizer.step()
     model.eval()
-    samples = model.sample_latents(batch, samples=2, steps=20)  # [8, 2, L, Z]
+    samples = model.sample_latents(batch, num_samples=2, steps=20)  # [8, 2, L, Z]
     relative_mse = float(((samples - latents[:, None]) ** 2).mean() / latents.var())
     nearest = torch.cdist(samples.flatten(2).transpose(0, 1), latents.flatten(1)[None]).argmin(-1)
     assert relative_mse < 0.3, relative_mse
@@ -137,26 +152,22 @@ def test_reconstruct_meshes_and_spread(stage1_ckpt):
     assert len(recs) == 2 and all(len(r.mesh.faces) > 0 for r in recs)
     extent = recs[0].mesh.bounds[1] - recs[0].mesh.bounds[0]
     assert np.all(extent > 0.4) and np.all(extent < 0.8)  # the sphere Stage 1 was fitted to
-    (recon, spread), = model.reconstruct_with_uncertainty(radar_batch(1), samples=3, steps=5)
+    (recon, spread), = model.reconstruct_with_uncertainty(radar_batch(1), num_samples=3, steps=5)
     assert spread.shape == (len(recon.mesh.vertices),) and np.all(spread >= 0)
-    (_, single), = model.reconstruct_with_uncertainty(radar_batch(1), samples=1, steps=5)
+    (_, single), = model.reconstruct_with_uncertainty(radar_batch(1), num_samples=1, steps=5)
     assert np.all(single == 0)
-    first = model.sample_latents(radar_batch(1), samples=2, steps=5, eta=1.0, seed=3)
-    torch.testing.assert_close(first, model.sample_latents(radar_batch(1), samples=2, steps=5, eta=1.0, seed=3))
+    first = model.sample_latents(radar_batch(1), num_samples=2, steps=5, eta=1.0, sample_seed=3)
+    torch.testing.assert_close(first, model.sample_latents(radar_batch(1), num_samples=2, steps=5, eta=1.0, sample_seed=3))
 
 
 class RadarStub(L.LightningDataModule):
-    """The pieces of a radar DataModule that RadarDiffusion reads: grid, dB statistics, training batches."""
+    """The pieces of a radar DataModule that RadarDiffusion reads: the radar spec and training batches."""
 
     def __init__(self, batch: dict, grid: dict, db_mean: float = -30.0, db_std: float = 10.0):
         super().__init__()
-        self.manifest = {"radar": {k: np.asarray(v).tolist() for k, v in grid.items()}}
-        self.stats = {"mean": db_mean, "std": db_std, "floor_db": -100.0}
+        self.radar_spec = RadarSpec(RadarGrid(grid["aspect_rad"], grid["roll_rad"], grid["freq_hz"]), db_mean, db_std)
         n = len(batch["radar"])
         self.items = [{k: v[i] for k, v in batch.items()} for i in range(n)]
-
-    def transform(self, split):
-        return type("Transform", (), self.stats)()
 
     def train_dataloader(self):
         return torch.utils.data.DataLoader(self.items, batch_size=len(self.items))
@@ -178,13 +189,13 @@ def test_fit_start_stores_statistics_and_radar_grid(stage1_ckpt, tmp_path):
     batch = {**radar_batch(4), "surface_points": sphere_batch()["surface_points"][:1].expand(4, -1, -1)}
     trainer = fit(model, RadarStub(batch, GRID), 2, tmp_path)
     assert bool(model.standardiser.ready)
-    assert model.hparams.radar_meta["db_std"] == 10.0 and len(model.hparams.radar_meta["freq_hz"]) == 8
+    assert model.radar_spec.db_std == 10.0 and model.radar_spec.grid.shape == (4, 8, 8)
     path = tmp_path / "stage2.ckpt"
     trainer.save_checkpoint(path)
     loaded = RadarDiffusion.load_from_checkpoint(path, map_location="cpu", weights_only=True)
     torch.testing.assert_close(loaded.standardiser.mean, model.standardiser.mean)
     torch.testing.assert_close(loaded.stage1.decoder.mlp.state_dict(), model.stage1.decoder.mlp.state_dict())
-    assert loaded.hparams.radar_meta == model.hparams.radar_meta
+    assert loaded.radar_spec == model.radar_spec and "radar_meta" not in loaded.hparams
     assert not any(p.requires_grad for p in loaded.stage1.parameters())
 
 
@@ -192,7 +203,7 @@ def test_bad_configuration_is_reported(stage1_ckpt, tmp_path):
     with pytest.raises(UserInputError, match="stage1_ckpt"):
         RadarDiffusion(stage1_ckpt=str(tmp_path / "missing.ckpt"))
     with pytest.raises(ValueError, match="cannot split"):
-        tiny_model(stage1_ckpt, n_freq=1)
+        tiny_model(stage1_ckpt, num_freq=1)
     with pytest.raises(UserInputError, match="radar must be"):
         tiny_model(stage1_ckpt).encode_radar(torch.zeros(1, 4, 8, 6), torch.ones(1, 4, 8, dtype=torch.bool))
 
@@ -231,7 +242,7 @@ def test_overfit_eight_shapes_from_their_radar(tmp_path):
              "radar_mask": torch.ones(8, 8, 8, dtype=torch.bool), "index": torch.arange(8),
              "surface_points": truth["surface_points"]}
 
-    model = RadarDiffusion(stage1_ckpt=save_checkpoint(stage1, tmp_path / "stage1.ckpt"), n_freq=8, dim=64,
+    model = RadarDiffusion(stage1_ckpt=save_checkpoint(stage1, tmp_path / "stage1.ckpt"), num_freq=8, dim=64,
                            n_layers=2, n_heads=4, encoder_depth=18, encoder_width=0.125, num_steps=100, lr=1e-3,
                            mesh_resolution=48)
     fit(model, RadarStub(batch, grid, float(db.mean()), float(db.std())), 800, tmp_path)

@@ -16,14 +16,16 @@ from data_modules.datamodules import ShapeDataModule
 from data_modules.radar_transform import RadarTransform
 from radar2shape.errors import UserInputError
 from radar2shape.geometry.query import contains, sample_surface
-from radar2shape.metrics import ReconstructionEvaluator
+from radar2shape.metrics import ReconstructionEvaluator, ShapeScorer
 from radar2shape.models.reference import MeanShapeReference, NearestNeighbourReference
+from radar2shape.radar import RadarGrid
+from radar2shape.radar.spec import RadarSpec
 
 REPO = Path(__file__).resolve().parents[2]
 
 
 class RecordsStub:
-    """What the references read from a DataModule: raw training records and the train transform."""
+    """What the references read from a DataModule: raw training records and the radar spec."""
 
     def __init__(self, meshes: list[trimesh.Trimesh], radars: list[np.ndarray] | None = None):
         radars = radars or [np.ones((2, 3, 4), np.complex64)] * len(meshes)
@@ -35,8 +37,7 @@ class RecordsStub:
     def train_records(self):
         return self.records
 
-    def transform(self, split):
-        return RadarTransform(mean=-20.0, std=5.0, observability="partial", keep=(0.3, 0.5), noise_db=-10.0)
+    radar_spec = RadarSpec(RadarGrid(np.zeros(2), np.zeros(3), np.ones(4)), db_mean=-20.0, db_std=5.0)
 
 
 def box(centre, extent=0.3) -> trimesh.Trimesh:
@@ -65,7 +66,7 @@ def test_nearest_neighbour_uses_only_observed_cells():
     stub = RecordsStub([box([x, 0, 0], 0.2) for x in (-0.3, 0.0, 0.3)], radars)
     reference = NearestNeighbourReference(chunk=2)  # several chunks
     reference.fit_reference(stub)
-    full = RadarTransform(mean=-20.0, std=5.0, observability="full")
+    full = RadarTransform(RecordsStub.radar_spec, observability="full")
     inputs = torch.from_numpy(np.stack([full(radars[i], rng, i)[0] for i in (2, 0, 1)]))
     mask = torch.ones(3, 2, 3, dtype=torch.bool)
     assert reference.neighbours(inputs, mask).tolist() == [2, 0, 1]
@@ -98,7 +99,7 @@ def test_radar2shape_test_scores_references(parts_root, tmp_path, reference):
     """Through Trainer.test with the shared callback, like any model; a training shape finds itself."""
     points = {"surface": 256, "sdf": 256, "eval": 1024, "occ": 2048}
     datamodule = ShapeDataModule(str(parts_root), batch_size=2, points={s: points for s in ("train", "val", "test")})
-    evaluator = ReconstructionEvaluator(num_points=1024, num_saved=0)
+    evaluator = ReconstructionEvaluator([ShapeScorer(1024)], num_saved=0)
     trainer = L.Trainer(logger=False, callbacks=[evaluator], enable_progress_bar=False, enable_model_summary=False,
                         accelerator="cpu", default_root_dir=tmp_path)
     model = reference()

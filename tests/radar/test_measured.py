@@ -6,7 +6,7 @@ import pytest
 from radar2shape.errors import UserInputError
 from radar2shape.geometry.families.monocone import Monocone
 from radar2shape.geometry.profile import profile_to_mesh
-from radar2shape.radar import save_response, simulate, to_db
+from radar2shape.radar import RadarGrid, save_response, simulate, to_db
 from radar2shape.radar.measured import (
     Measurement,
     full_circle,
@@ -18,12 +18,19 @@ from radar2shape.radar.measured import (
     resample,
     write_csv,
 )
+from radar2shape.radar.spec import RadarSpec
 from radar2shape.radar.validation import read_cut
 
 ALMOND = "austin-rcs/almond-IIIA"
 MODEL_ASPECT = np.radians(np.linspace(0, 180, 16))
 MODEL_ROLL = np.radians(np.linspace(0, 360, 16, endpoint=False))
 MODEL_FREQ = np.linspace(8e9, 12e9, 16)
+
+
+def spec_for(grid, db_mean: float, db_std: float) -> RadarSpec:
+    """A spec whose statistics are given (its axes only need the input's shape)."""
+    a, r, f = grid.db.shape
+    return RadarSpec(RadarGrid(np.zeros(a), np.zeros(r), np.ones(f)), db_mean, db_std)
 
 
 def file_rows(path):
@@ -72,7 +79,7 @@ def test_almond_cut_on_a_model_grid(shared_validation):
     fx4 = file_rows(paths[3])
     assert grid.db[7, 2, 8] == pytest.approx(fx4[180][3])  # roll 45 deg = line 181 (phi 45.00)
     assert np.isnan(grid.db[0]).all() and np.isnan(grid.db[7, 9:]).all()
-    normalised = grid.normalised(-20.0, 10.0)
+    normalised = spec_for(grid, db_mean=-20.0, db_std=10.0).normalise(grid.db, grid.mask)
     assert (normalised[~grid.mask] == 0).all() and (normalised[..., ~grid.freq_mask] == 0).all()
     assert normalised[7, 2, 8] == pytest.approx((fx4[180][3] + 20) / 10, rel=1e-6)
 
@@ -245,7 +252,8 @@ def test_partly_overlapping_band(tmp_path):
     grid = resample(m, MODEL_ASPECT, [0.0], MODEL_FREQ, roll_symmetric=True, max_gap_steps=60)
     assert grid.overlap == pytest.approx(0.6)
     np.testing.assert_array_equal(grid.freq_mask, MODEL_FREQ >= 9.6e9 - 1e8 / 3)  # within half a step of 9.6
-    assert grid.mask.all() and (grid.normalised(0, 1)[..., ~grid.freq_mask] == 0).all()
+    normalised = spec_for(grid, db_mean=0.0, db_std=1.0).normalise(grid.db, grid.mask)
+    assert grid.mask.all() and (normalised[..., ~grid.freq_mask] == 0).all()
     with pytest.raises(UserInputError, match=r"covers 60 % of the model's 8-12 GHz; at least 70 % is needed"):
         resample(m, MODEL_ASPECT, [0.0], MODEL_FREQ, roll_symmetric=True, min_overlap=0.7)
 

@@ -9,15 +9,14 @@ accepted down to ``--min-overlap``, optional ``--calibration-db`` and ``--size-m
 ``--roll-symmetric`` repeats an aspect-only response along roll for the full 3D model, as the
 paper does with measured data. The checkpoint may be a :class:`RadarDiffusion` (3D) or a
 roll-symmetric profile model (``ProfileUNetDiffusion``, ``InvRT``), which takes the aspect-only
-response directly; its grid and dB statistics come from the checkpoint's ``radar_meta`` or from
-its dataset's manifest (``--dataset``).
+response directly. Everything about the radar (grid, dB floor and train statistics) comes from
+the :class:`~radar2shape.radar.spec.RadarSpec` stored in the checkpoint: no dataset is needed.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import time
 from pathlib import Path
 
@@ -25,7 +24,9 @@ import numpy as np
 import torch
 
 from radar2shape.errors import UserInputError
+from radar2shape.models.base import RADAR_SPEC_KEY
 from radar2shape.radar.measured import FORMATS, MIN_OVERLAP, GridInput, read_measured, resample
+from radar2shape.radar.spec import RadarSpec
 
 RADAR_DIFFUSION = "radar2shape.models.radar_diffusion.RadarDiffusion"
 
@@ -46,8 +47,6 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         "frequency and level to the model's object size (default: no scaling)")
     parser.add_argument("--min-overlap", type=float, default=MIN_OVERLAP,
                         help=f"least fraction of the model's band the file must cover (default {MIN_OVERLAP})")
-    parser.add_argument("--dataset", type=Path, help="profile models: dataset folder whose manifest gives the "
-                        "radar grid and dB statistics (default: the one the checkpoint was trained on)")
     parser.add_argument("--save-input", type=Path, help="also write the model-grid input (.npz: db, mask, ...)")
     parser.add_argument("--samples", type=int, help="K sampled shapes; the mesh is their mean (default: model's)")
     parser.add_argument("--steps", type=int, help="DDIM steps, RadarDiffusion only (default: the model's)")
@@ -74,53 +73,29 @@ def _model_class(path: Path, hparams: dict):
 
 
 def load_model(path: Path):
-    """The checkpoint's model on the CPU in eval mode, and what else the checkpoint stores.
+    """The checkpoint's model on the CPU in eval mode, its ``radar_spec`` read from the checkpoint.
 
-    The second value holds the checkpoint's DataModule hyperparameters (``root``, ``floor_db``) and,
-    under ``radar_meta``, the radar metadata saved with the model's hyperparameters (a profile
-    model's ``__init__`` does not take it, so it is read from the file rather than the model).
+    A checkpoint without a radar spec (saved before checkpoints stored one) is refused: its
+    normalisation cannot be recovered without the training data, so the model must be retrained.
     """
     if not path.is_file():
         raise UserInputError(f"--ckpt: {path} not found")
     try:
         checkpoint = torch.load(path, map_location="cpu", weights_only=True)
         hparams = dict(checkpoint.get("hyper_parameters") or {})
-        cls = _model_class(path, hparams)
+    except (KeyError, TypeError, ValueError, RuntimeError, AttributeError, EOFError, OSError) as err:
+        raise UserInputError(f"--ckpt: {path} is not a reconstruction model checkpoint ({type(err).__name__}: {err})") from err
+    cls = _model_class(path, hparams)
+    if checkpoint.get(RADAR_SPEC_KEY) is None:
+        raise UserInputError(f"--ckpt: {path} stores no radar spec (it was saved before checkpoints stored one, "
+                             "or not fitted on a radar DataModule); retrain the model")
+    spec = RadarSpec.from_dict(checkpoint[RADAR_SPEC_KEY], f"--ckpt: {path}: {RADAR_SPEC_KEY}")
+    try:
         model = cls.load_from_checkpoint(path, map_location="cpu", weights_only=True)
-    except UserInputError:
-        raise
     except (KeyError, TypeError, ValueError, RuntimeError, AttributeError, EOFError) as err:
         raise UserInputError(f"--ckpt: {path} is not a reconstruction model checkpoint ({type(err).__name__}: {err})") from err
-    extra = dict(checkpoint.get("datamodule_hyper_parameters") or {})
-    extra["radar_meta"] = hparams.get("radar_meta")
-    return model.eval(), extra
-
-
-def _manifest_meta(root: Path, floor_db: float) -> dict:
-    """Radar grid and train dB statistics of a built dataset (its manifest, or the DataModule's stats cache)."""
-    try:
-        manifest = json.loads((root / "manifest.json").read_text())
-        stats = manifest.get("radar_stats") or {}
-        if stats.get("floor_db") != floor_db:
-            stats = json.loads((root / f"radar_stats_floor{floor_db:g}.json").read_text())
-        radar = manifest["radar"]
-        return {"aspect_rad": radar["aspect_rad"], "roll_rad": radar["roll_rad"], "freq_hz": radar["freq_hz"],
-                "size_m": radar.get("size_m", 1.0), "db_mean": stats["mean"], "db_std": stats["std"], "floor_db": floor_db}
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        raise UserInputError(f"--dataset: {root} gives no radar grid and dB statistics (floor {floor_db:g} dB): {err}") from err
-
-
-def radar_meta(model, datamodule_hparams: dict, dataset: Path | None, ckpt: Path) -> dict:
-    """The model's radar grid and dB normalisation (``aspect_rad, roll_rad, freq_hz, db_mean, db_std, floor_db``)."""
-    meta = model.hparams.get("radar_meta") or datamodule_hparams.get("radar_meta")
-    if meta and dataset is None:
-        return dict(meta)
-    if not is_profile_model(model):
-        raise UserInputError(f"--ckpt: {ckpt} stores no radar grid (the model was not fitted on a radar DataModule)")
-    root = dataset or datamodule_hparams.get("root")
-    if root is None:
-        raise UserInputError(f"--ckpt: {ckpt} stores no radar grid nor dataset; give --dataset DIR (the training data)")
-    return _manifest_meta(Path(root), float(datamodule_hparams.get("floor_db", -100.0)))
+    model.set_radar_spec(spec)  # checked against the network: a spec that does not fit is refused
+    return model.eval()
 
 
 def is_profile_model(model) -> bool:
@@ -129,37 +104,45 @@ def is_profile_model(model) -> bool:
     return isinstance(model, ProfileModel)
 
 
-def measured_input(paths: list[Path], fmt: str | None, meta: dict, profile: bool, roll_symmetric: bool = False,
+def measured_input(paths: list[Path], fmt: str | None, spec: RadarSpec, roll_symmetric: bool = False,
                    calibration_db: float = 0.0, size_m: float | None = None,
                    min_overlap: float = MIN_OVERLAP) -> GridInput:
-    """A file on the model's grid; profile models see roll 0 of an aspect-only response."""
+    """A file on the spec's grid; a roll-symmetric spec takes an aspect-only response at its one roll."""
     measurement = read_measured(paths, fmt)
-    if profile and not measurement.aspect_only:
+    if spec.roll_symmetric and not measurement.aspect_only:
         raise UserInputError(f"{measurement.source}: a profile model needs an aspect-only response (one roll angle), "
                              f"got {len(measurement.roll_rad)} roll angles")
-    roll = [0.0] if profile else meta["roll_rad"]
-    return resample(measurement, meta["aspect_rad"], roll, meta["freq_hz"], floor_db=meta["floor_db"],
-                    calibration_db=calibration_db, size_m=size_m, model_size_m=meta.get("size_m", 1.0),
-                    min_overlap=min_overlap, roll_symmetric=roll_symmetric or profile)
+    grid = spec.grid
+    return resample(measurement, grid.aspect_rad, grid.roll_rad, grid.freq_hz, floor_db=spec.floor_db,
+                    calibration_db=calibration_db, size_m=size_m, model_size_m=grid.size_m,
+                    min_overlap=min_overlap, roll_symmetric=roll_symmetric or spec.roll_symmetric)
 
 
-def reconstruct_input(model, grid: GridInput, meta: dict, samples: int | None = None, steps: int | None = None,
+def model_batch(spec: RadarSpec, grid: GridInput) -> dict[str, torch.Tensor]:
+    """The one-sample batch the model sees: ``spec.normalise``d radar and its mask (roll dropped when roll-symmetric)."""
+    radar = torch.from_numpy(spec.normalise(grid.db, grid.mask))[None]
+    mask = torch.from_numpy(grid.mask)[None]
+    if spec.roll_symmetric:
+        return {"radar": radar[:, :, 0], "radar_mask": mask[:, :, 0]}
+    return {"radar": radar, "radar_mask": mask}
+
+
+def reconstruct_input(model, grid: GridInput, samples: int | None = None, steps: int | None = None,
                       resolution: int | None = None, seed: int = 0):
     """``(Reconstruction, per-vertex SDF spread or None)`` of a model-grid input, 3D or profile model."""
-    radar = torch.from_numpy(grid.normalised(meta["db_mean"], meta["db_std"]))[None]
-    mask = torch.from_numpy(grid.mask)[None]
+    batch = model_batch(model.radar_spec, grid)
     if is_profile_model(model):
         if samples is not None:
             model.hparams.num_samples = samples
         if "sample_seed" in model.hparams:
             model.hparams.sample_seed = seed
-        return model.reconstruct({"radar": radar[:, :, 0], "radar_mask": mask[:, :, 0]})[0], None
-    (recon, spread), = model.reconstruct_with_uncertainty({"radar": radar, "radar_mask": mask}, samples, steps,
-                                                          resolution, seed)
+        return model.reconstruct(batch)[0], None
+    (recon, spread), = model.reconstruct_with_uncertainty(batch, num_samples=samples, steps=steps,
+                                                          resolution=resolution, sample_seed=seed)
     return recon, spread
 
 
-def save_png(path: Path, db: np.ndarray, meta: dict, roll_deg: np.ndarray, mesh, title: str) -> None:
+def save_png(path: Path, db: np.ndarray, spec: RadarSpec, mesh, title: str) -> None:
     """Input dB image (mean power over frequency, aspect x roll; masked cells blank) beside two views of the mesh."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -172,7 +155,7 @@ def save_png(path: Path, db: np.ndarray, meta: dict, roll_deg: np.ndarray, mesh,
     count = np.isfinite(db).sum(axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):  # masked cells (no value) stay blank
         power_db = np.where(count > 0, 10 * np.log10(power.sum(axis=-1) / count), np.nan)
-    aspect = np.degrees(meta["aspect_rad"])
+    aspect, roll_deg = np.degrees(spec.grid.aspect_rad), np.degrees(spec.grid.roll_rad)
     roll_extent = (roll_deg[0], roll_deg[-1]) if len(roll_deg) > 1 else (roll_deg[0] - 0.5, roll_deg[0] + 0.5)
     fig = Figure(figsize=(3.4 * (1 + len(VIEWS)), 3.4), layout="constrained")
     FigureCanvasAgg(fig)
@@ -208,25 +191,24 @@ def _check_options(args: argparse.Namespace, model, profile: bool) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    model, datamodule_hparams = load_model(args.ckpt)
+    model = load_model(args.ckpt)
+    spec = model.radar_spec
     profile = is_profile_model(model)
     _check_options(args, model, profile)
-    meta = radar_meta(model, datamodule_hparams, args.dataset, args.ckpt)
     paths, fmt = ([args.radar], "npz") if args.radar is not None else (args.measured, args.format)
-    grid = measured_input(paths, fmt, meta, profile, args.roll_symmetric, args.calibration_db, args.size_m,
-                          args.min_overlap)
+    grid = measured_input(paths, fmt, spec, args.roll_symmetric, args.calibration_db, args.size_m, args.min_overlap)
     name = paths[0].name
     print(f"input {name}: {int(grid.mask.sum())} of {grid.mask.size} aspect x roll cells observed, "
           f"{int(grid.freq_mask.sum())} of {len(grid.freq_mask)} frequencies in band ({100 * grid.overlap:.0f} % overlap)")
     if args.save_input:
         args.save_input.parent.mkdir(parents=True, exist_ok=True)
         np.savez(args.save_input, db=grid.db, mask=grid.mask, freq_mask=grid.freq_mask,
-                 radar=grid.normalised(meta["db_mean"], meta["db_std"]), aspect_rad=meta["aspect_rad"],
-                 roll_rad=[0.0] if profile else meta["roll_rad"], freq_hz=meta["freq_hz"])
+                 radar=spec.normalise(grid.db, grid.mask), aspect_rad=spec.grid.aspect_rad,
+                 roll_rad=spec.grid.roll_rad, freq_hz=spec.grid.freq_hz)
         print(f"wrote {args.save_input}")
 
     start = time.perf_counter()
-    recon, spread = reconstruct_input(model, grid, meta, args.samples, args.steps, args.resolution, args.seed)
+    recon, spread = reconstruct_input(model, grid, args.samples, args.steps, args.resolution, args.seed)
     seconds = time.perf_counter() - start
     mesh = recon.mesh
     if mesh is None or len(mesh.faces) == 0:
@@ -236,14 +218,13 @@ def main(args: argparse.Namespace) -> int:
     mesh.export(args.out)
     detail = f"{len(mesh.vertices)} vertices, {len(mesh.faces)} faces, {seconds:.2f} s"
     if spread is not None:
-        detail += (f", {args.samples or model.hparams.samples} sample(s); SDF spread over samples mean "
+        detail += (f", {args.samples or model.hparams.num_samples} sample(s); SDF spread over samples mean "
                    f"{spread.mean():.4f}, max {spread.max():.4f}")
     print(f"wrote {args.out}: {detail}")
     if args.spread:
         np.save(args.spread, spread)
         print(f"wrote {args.spread}")
     if args.png:
-        roll_deg = np.degrees([0.0] if profile else meta["roll_rad"])
-        save_png(args.png, grid.db, meta, roll_deg, mesh, f"{name} -> {args.out.name}")
+        save_png(args.png, grid.db, spec, mesh, f"{name} -> {args.out.name}")
         print(f"wrote {args.png}")
     return 0

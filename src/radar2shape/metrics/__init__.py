@@ -2,14 +2,16 @@
 
 - ``functional``: per-sample Chamfer-L2, F-score and IoU on point sets and occupancy labels;
 - ``scoring``: a model's ``Reconstruction`` -> those scores (sampling, containment, worst values);
+- ``rollsym``: IoU-S, IoU-R and MATCH-S for roll-symmetric shapes;
+- ``scorers``: the per-sample score families the evaluator runs (``ShapeScorer``, ``ProfileScorer``);
 - ``aggregate``: torchmetrics classes pooling scores into mean +- std, overall and per class;
-- ``callback``: ``ReconstructionEvaluator``, the Lightning callback every experiment uses;
-- ``rollsym``: IoU-S, IoU-R and MATCH-S for roll-symmetric shapes.
+- ``callback``: ``ReconstructionEvaluator``, the Lightning callback every experiment uses.
 """
 
-from radar2shape.metrics.aggregate import ChamferDistance, FScore, MeanStd, ReconstructionMetrics, VolumetricIoU
+from radar2shape.metrics.aggregate import ChamferDistance, FScore, MeanStd, VolumetricIoU, pool_scores
 from radar2shape.metrics.callback import ReconstructionEvaluator
 from radar2shape.metrics.functional import CHAMFER_SCALE, CHAMFER_WORST, FSCORE_TAU, chamfer_l2, fscore, iou
+from radar2shape.metrics.scorers import ProfileScorer, Scorer, ShapeScorer
 from radar2shape.metrics.scoring import score_reconstruction
 
 __all__ = [
@@ -19,11 +21,14 @@ __all__ = [
     "ChamferDistance",
     "FScore",
     "MeanStd",
+    "ProfileScorer",
     "ReconstructionEvaluator",
-    "ReconstructionMetrics",
+    "Scorer",
+    "ShapeScorer",
     "VolumetricIoU",
     "chamfer_l2",
     "fscore",
     "iou",
+    "pool_scores",
     "score_reconstruction",
 ]

@@ -1,9 +1,9 @@
 """torchmetrics classes that pool per-sample scores into mean +- std, overall and per class.
 
-The scores themselves come from ``metrics.scoring`` / ``metrics.functional``; these classes only
-aggregate, so every model, the callback and the CLI share one definition of each metric.
-States are class-indexed sums (sum, sum of squares, count) with ``dist_reduce_fx="sum"``:
-DDP ranks reduce by adding them, which gives exactly the pooled mean and std.
+The scores themselves come from the scorers (``metrics.scorers``); these classes only aggregate,
+so every model, the callback and the CLI share one definition of each metric. States are
+class-indexed sums (sum, sum of squares, count) with ``dist_reduce_fx="sum"``: DDP ranks reduce
+by adding them, which gives exactly the pooled mean and std.
 """
 
 from __future__ import annotations
@@ -90,21 +90,17 @@ class FScore(MeanStd):
         self.name = metric_names(self.tau)["fscore"]
 
 
-class ReconstructionMetrics(torch.nn.Module):
-    """The three shape metrics together, fed with ``score_reconstruction`` dicts."""
+def pool_scores(scores: Sequence[dict[str, float]], labels: Labels = None, num_classes: int = 1,
+                names: Sequence[str] | None = None) -> dict[str, dict[str, torch.Tensor]]:
+    """Per-sample score dicts -> ``{name: MeanStd.compute()}`` for each score name.
 
-    def __init__(self, num_classes: int = 1, tau: float = FSCORE_TAU):
-        super().__init__()
-        metrics = [ChamferDistance(num_classes), VolumetricIoU(num_classes), FScore(num_classes, tau)]
-        self.metrics = torch.nn.ModuleDict({m.name: m for m in metrics})
-
-    def update(self, scores: Sequence[dict[str, float]], labels: Labels = None) -> None:
-        for name, metric in self.metrics.items():
-            metric.update([s[name] for s in scores], labels)
-
-    def compute(self) -> dict[str, dict[str, torch.Tensor]]:
-        return {name: metric.compute() for name, metric in self.metrics.items()}
-
-    def reset(self) -> None:
-        for metric in self.metrics.values():
-            metric.reset()
+    Pools on this process only: callers gather the scores of all ranks first, so records that a
+    distributed sampler repeats can be dropped before pooling.
+    """
+    names = list(names if names is not None else (scores[0] if scores else {}))
+    out = {}
+    for name in names:
+        metric = MeanStd(num_classes, sync_on_compute=False)
+        metric.update([s[name] for s in scores], labels)
+        out[name] = metric.compute()
+    return out

@@ -18,10 +18,25 @@ import numpy as np
 import torch
 import trimesh
 
+from radar2shape.errors import UserInputError
+
 if TYPE_CHECKING:
     from radar2shape.radar.spec import RadarSpec
 
 RADAR_SPEC_KEY = "radar_spec"
+
+# Hyperparameters that now have one spelling across all models (old name -> new name).
+RENAMED_HPARAMS = {
+    "n_freq": "num_freq", "samples": "num_samples", "seed": "sample_seed", "d_model": "dim",
+    "hidden": "mlp_hidden", "n_hidden": "mlp_layers", "n_samples": "chamfer_samples",
+}
+
+
+def check_hparam_names(hparams: dict, source: str) -> None:
+    """Refuse hyperparameters saved under a retired spelling (a checkpoint of an older radar2shape)."""
+    old = [f"{k} (now {v})" for k, v in RENAMED_HPARAMS.items() if k in hparams]
+    if old:
+        raise UserInputError(f"{source}: saved with retired hyperparameter names {', '.join(old)}; retrain the model")
 
 
 @dataclass
@@ -96,6 +111,8 @@ class ReconstructionModel(L.LightningModule):
 
     def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
         losses = self.losses(batch)
+        if "loss" not in losses:
+            raise UserInputError(f"{type(self).__name__} has nothing to train; run it with `radar2shape test`")
         self._log_losses("train", losses, batch)
         return losses["loss"]
 
@@ -139,6 +156,7 @@ class ReconstructionModel(L.LightningModule):
             checkpoint[RADAR_SPEC_KEY] = self.radar_spec.to_dict()
 
     def on_load_checkpoint(self, checkpoint: dict) -> None:
+        check_hparam_names(checkpoint.get("hyper_parameters", {}), f"{type(self).__name__} checkpoint")
         if checkpoint.get(RADAR_SPEC_KEY) is not None:
             from radar2shape.radar.spec import RadarSpec
 

@@ -14,8 +14,11 @@ import copy
 import torch
 
 from radar2shape.errors import UserInputError
+from radar2shape.models.base import check_hparam_names
+from radar2shape.models.base import RADAR_SPEC_KEY
 from radar2shape.models.radar_diffusion import RadarDiffusion
 from radar2shape.nn.lora import apply_lora, load_base_state_dict, mark_only_lora_trainable, merge_lora
+from radar2shape.radar.spec import RadarSpec
 
 LORA_HPARAMS = ("base_ckpt", "base_source", "lora_rank", "lora_alpha", "lora_dropout", "lora_targets")
 
@@ -45,6 +48,10 @@ class LoRARadarDiffusion(RadarDiffusion):
                 raise UserInputError(f"base_ckpt: cannot read a checkpoint at {base_ckpt} ({err})") from err
             if "state_dict" not in ckpt or "stage1_hparams" not in ckpt.get("hyper_parameters", {}):
                 raise UserInputError(f"base_ckpt: {base_ckpt} is not a RadarDiffusion checkpoint")
+            check_hparam_names(ckpt["hyper_parameters"], f"base_ckpt {base_ckpt}")
+            if ckpt.get(RADAR_SPEC_KEY) is None:
+                raise UserInputError(f"base_ckpt: {base_ckpt} stores no radar spec (saved before checkpoints "
+                                     "stored one); retrain the base model")
             # The base model's architecture wins: the CLI fills **hparams with RadarDiffusion's
             # defaults, which must not resize the model (only lr / weight_decay are fine-tuning settings).
             hparams = copy.deepcopy(dict(ckpt["hyper_parameters"]))
@@ -60,6 +67,7 @@ class LoRARadarDiffusion(RadarDiffusion):
         super().__init__(**hparams)
         if state is not None:
             self.load_state_dict(state)
+            self.radar_spec = RadarSpec.from_dict(ckpt[RADAR_SPEC_KEY], f"base_ckpt {base_ckpt}")
         targets = list(lora_targets)
         if not apply_lora(self.transformer, targets, lora_rank, lora_alpha, lora_dropout):
             raise UserInputError(f"lora_targets: no nn.Linear named {targets} in the Transformer")

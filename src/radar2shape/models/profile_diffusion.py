@@ -9,8 +9,6 @@ profile normalisation, turning predictions into valid profiles and meshes); the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import torch
 import trimesh
@@ -22,6 +20,7 @@ from radar2shape.geometry.profile import profile_to_mesh, validate_profile
 from radar2shape.models.base import Reconstruction, ReconstructionModel
 from radar2shape.nn.diffusion import GaussianDiffusion
 from radar2shape.nn.unet1d import UNet1D
+from radar2shape.radar.spec import RadarSpec
 
 # Normalised profiles have r in [0, 0.5] and z in [-0.5, 0.5]; this affine map sends both to
 # [-1, 1], the scale the diffusion prior N(0, I) and the regression targets are built for.
@@ -29,13 +28,6 @@ PROFILE_CENTRE = (0.25, 0.0)
 PROFILE_SCALE = (4.0, 2.0)
 MIN_RADIUS = 1e-3  # interior points are kept off the axis: a profile may touch it only at its ends
 MIN_HEIGHT = 1e-3
-
-
-@dataclass
-class ProfileReconstruction(Reconstruction):
-    """A reconstruction that also carries the predicted profile ``[P, 2]`` (normalised coordinates)."""
-
-    profile: np.ndarray | None = None
 
 
 def normalise_profile(profile: torch.Tensor) -> torch.Tensor:
@@ -68,26 +60,17 @@ def to_valid_profile(profile: np.ndarray) -> np.ndarray:
     return np.column_stack([r, z])
 
 
-def _same(cached: tuple, inputs: tuple) -> bool:
-    return all(
-        (a is None and b is None) or (a is not None and b is not None and a.shape == b.shape and torch.equal(a, b.to(a.device)))
-        for a, b in zip(cached, inputs)
-    )
-
-
 class ProfileModel(ReconstructionModel):
     """Base of the roll-symmetric models: checked inputs, profile scaling, meshes for the metrics.
 
     Subclasses implement :meth:`predict_normalised` (``batch -> [B, P, 2]`` at network scale) and
-    :meth:`training_loss`; the Lightning steps (one logged loss per stage), AdamW on
-    ``hparams.lr`` / ``weight_decay`` and everything a metric needs come from here.
+    :meth:`~ReconstructionModel.losses`; everything a metric needs comes from here.
     """
 
     num_aspect: int
     num_freq: int
     profile_points: int
     mesh_segments: int = 64
-    _cache: tuple | None = None
 
     def radar_input(self, batch: dict) -> torch.Tensor:
         """``[B, F + 1, A]``: the radar's frequencies as channels plus the observed-aspect mask.
@@ -109,6 +92,15 @@ class ProfileModel(ReconstructionModel):
         radar = radar * mask[..., None]
         return torch.cat([radar.transpose(1, 2), mask[:, None].to(radar.dtype)], dim=1)
 
+    def check_radar_spec(self, spec: RadarSpec) -> None:
+        """The data must be aspect-only (roll-symmetric) on ``num_aspect`` x ``num_freq``."""
+        aspect, _, freq = spec.grid.shape
+        if not spec.roll_symmetric or (aspect, freq) != (self.num_aspect, self.num_freq):
+            raise UserInputError(
+                f"{type(self).__name__}: expects roll-symmetric radar [A={self.num_aspect}, F={self.num_freq}], the "
+                f"data's radar spec is {spec.describe()}; set num_aspect/num_freq or use a ProfileDataModule"
+            )
+
     def target_profiles(self, batch: dict) -> torch.Tensor:
         """The batch's ground-truth profiles at network scale, after checking each is a valid profile."""
         profile = batch.get("profile")
@@ -129,52 +121,22 @@ class ProfileModel(ReconstructionModel):
         """The model's profiles ``[B, P, 2]`` at network scale (what the subclass is about)."""
         raise NotImplementedError
 
-    def training_loss(self, batch: dict) -> torch.Tensor:
-        """The scalar objective of one batch (what the subclass trains)."""
-        raise NotImplementedError
-
-    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
-        loss = self.training_loss(batch)
-        self.log("train/loss", loss, prog_bar=True, batch_size=batch["radar"].shape[0])
-        return loss
-
-    def validation_step(self, batch: dict, batch_idx: int) -> None:
-        self.log("val/loss", self.training_loss(batch), prog_bar=True, batch_size=batch["radar"].shape[0])
-
-    def test_step(self, batch: dict, batch_idx: int) -> None:
-        self.log("test/loss", self.training_loss(batch), batch_size=batch["radar"].shape[0])
-
-    def configure_optimizers(self):
-        return torch.optim.AdamW(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)
-
     @torch.no_grad()
     def predict_profiles(self, batch: dict) -> list[np.ndarray]:
         """One valid profile ``[P, 2]`` (unit-cube coordinates) per sample."""
         profiles = denormalise_profile(self.predict_normalised(batch)).cpu().numpy()
         return [to_valid_profile(p) for p in profiles]
 
-    def reconstruct(self, batch: dict) -> list[ProfileReconstruction]:
-        """Predicted profiles revolved into watertight meshes (``mesh_segments`` sectors).
-
-        In eval mode the last result is kept: predictions are deterministic (seeded sampling), so
-        a second metric callback asking for the same batch gets it without sampling again.
-        """
-        inputs = (batch["radar"], batch.get("radar_mask"))
-        if not self.training and self._cache is not None and _same(self._cache[0], inputs):
-            return self._cache[1]
+    def reconstruct(self, batch: dict) -> list[Reconstruction]:
+        """Predicted profiles revolved into watertight meshes (``mesh_segments`` sectors), each with its profile."""
         out = []
         for profile in self.predict_profiles(batch):
             try:
                 mesh = profile_to_mesh(profile, self.mesh_segments)
             except (UserInputError, ValueError):  # e.g. a self-intersecting outline
                 mesh = trimesh.Trimesh()
-            out.append(ProfileReconstruction(mesh=mesh, profile=profile))
-        self._cache = None if self.training else (tuple(None if x is None else x.detach().clone() for x in inputs), out)
+            out.append(Reconstruction(mesh=mesh, profile=profile))
         return out
-
-    def train(self, mode: bool = True):
-        self._cache = None  # weights are about to change
-        return super().train(mode)
 
 
 class ProfileUNetDiffusion(ProfileModel):
@@ -252,8 +214,8 @@ class ProfileUNetDiffusion(ProfileModel):
             per_sample = per_sample * snr.clamp(max=self.hparams.min_snr_gamma) / snr
         return per_sample.mean()
 
-    def training_loss(self, batch: dict) -> torch.Tensor:
-        return self.diffusion_loss(batch)
+    def losses(self, batch: dict) -> dict[str, torch.Tensor]:
+        return {"loss": self.diffusion_loss(batch)}
 
     def predict_normalised(self, batch: dict) -> torch.Tensor:
         """Sampled profiles at network scale, the point-wise mean of ``num_samples`` draws.

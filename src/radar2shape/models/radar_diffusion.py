@@ -32,6 +32,7 @@ from radar2shape.nn.diffusion import GaussianDiffusion
 from radar2shape.nn.positional import TimestepEmbedding, sinusoidal_embedding
 from radar2shape.nn.radar_encoder import RadarBlockEncoder
 from radar2shape.nn.transformer import Transformer, causal_mask
+from radar2shape.radar.spec import RadarSpec
 
 
 def load_stage1(path: str | Path) -> SDFVAE:
@@ -85,25 +86,6 @@ class LatentStandardiser(nn.Module):
         return x * self.std + self.mean
 
 
-def radar_metadata(datamodule) -> dict:
-    """Radar grid and dB normalisation of a radar DataModule, as primitive lists and numbers.
-
-    Read from ``datamodule.manifest["radar"]`` (the axes) and ``datamodule.transform("train")``
-    (dB mean/std/floor), the pieces :class:`data_modules.ShapeDataModule` exposes.
-    """
-    try:
-        grid = datamodule.manifest["radar"]
-        transform = datamodule.transform("train")
-    except (AttributeError, KeyError, TypeError) as err:
-        raise UserInputError(
-            f"{type(datamodule).__name__} does not expose a radar grid (manifest['radar']) and dB statistics "
-            "(transform('train')); RadarDiffusion needs a radar DataModule such as data_modules.ShapeDataModule"
-        ) from err
-    meta = {key: np.asarray(grid[key], dtype=float).tolist() for key in ("aspect_rad", "roll_rad", "freq_hz")}
-    meta.update(db_mean=float(transform.mean), db_std=float(transform.std), floor_db=float(transform.floor_db))
-    return meta
-
-
 class RadarDiffusion(ReconstructionModel):
     """Radar -> Stage-1 latents by causal Transformer diffusion; meshes through the frozen Stage-1 decoder.
 
@@ -112,7 +94,7 @@ class RadarDiffusion(ReconstructionModel):
         stage1_hparams: filled in from ``stage1_ckpt``; lets a Stage-2 checkpoint rebuild Stage 1 alone.
         latent_cache: optional ``.pt``/``.npz`` of training latents (``mu``, ``index``), instead of
             encoding ``surface_points`` with Stage 1 at fit start.
-        n_freq: number of radar frequencies F, cut into L contiguous blocks (equal when L divides F).
+        num_freq: number of radar frequencies F, cut into L contiguous blocks (equal when L divides F).
         dim, n_layers, n_heads, mlp_ratio, dropout: Transformer width D, depth, heads, MLP ratio.
         encoder_depth, encoder_width: ResNet depth (18/34/50/101/152) and width multiplier.
         num_steps, schedule: diffusion steps T and noise schedule (``cosine`` or ``linear``).
@@ -122,12 +104,14 @@ class RadarDiffusion(ReconstructionModel):
             the predicted noise, which gives the high-noise steps almost no weight: on parts_tiny
             it left the radar conditioning weak, docs/radar_diffusion.md).
         clip_x0: clamp of the predicted (standardised) latent while sampling; 0 = off.
-        samples, sample_steps, sample_eta, sampler: defaults of :meth:`reconstruct` (K samples,
+        num_samples, sample_steps, sample_eta, sampler: defaults of :meth:`reconstruct` (K samples,
             ``ddim`` with that many steps and eta, or ``ddpm``).
-        mesh_resolution: marching-cubes grid of :meth:`reconstruct`; seed: sampling seed.
+        mesh_resolution: marching-cubes grid of :meth:`reconstruct`; sample_seed: sampling seed.
         lr, weight_decay: AdamW settings.
-        radar_meta: radar grid (``aspect_rad``, ``roll_rad``, ``freq_hz``) and dB normalisation of
-            the training data, copied from the DataModule at fit start (``radar2shape reconstruct`` reads it).
+
+    The radar grid and dB normalisation come from the DataModule at fit start
+    (:attr:`radar_spec`, stored in the checkpoint); :meth:`check_radar_spec` refuses data whose
+    frequency count differs from ``num_freq``.
     """
 
     def __init__(
@@ -135,7 +119,7 @@ class RadarDiffusion(ReconstructionModel):
         stage1_ckpt: str | None = None,
         stage1_hparams: dict | None = None,
         latent_cache: str | None = None,
-        n_freq: int = 64,
+        num_freq: int = 64,
         dim: int = 512,
         n_layers: int = 8,
         n_heads: int = 8,
@@ -148,15 +132,14 @@ class RadarDiffusion(ReconstructionModel):
         eps_skip: bool = True,
         loss: str = "v",
         clip_x0: float = 0.0,
-        samples: int = 1,
+        num_samples: int = 1,
         sample_steps: int = 50,
         sample_eta: float = 0.0,
         sampler: str = "ddim",
         mesh_resolution: int = 128,
-        seed: int = 0,
+        sample_seed: int = 0,
         lr: float = 1e-4,
         weight_decay: float = 0.0,
-        radar_meta: dict | None = None,
     ) -> None:
         super().__init__()
         if loss not in ("v", "eps"):
@@ -179,7 +162,7 @@ class RadarDiffusion(ReconstructionModel):
         self.n_levels, self.latent_dim = stage1.n_levels, int(stage1.hparams.latent_dim)
 
         self.standardiser = LatentStandardiser(self.n_levels, self.latent_dim)
-        self.radar_encoder = RadarBlockEncoder(n_freq, self.n_levels, dim, encoder_depth, encoder_width)
+        self.radar_encoder = RadarBlockEncoder(num_freq, self.n_levels, dim, encoder_depth, encoder_width)
         self.latent_in = nn.Linear(self.latent_dim, dim)
         self.token_type = nn.Parameter(torch.zeros(2, dim))  # 0: radar token, 1: shape token
         self.time_embed = TimestepEmbedding(dim)
@@ -200,8 +183,8 @@ class RadarDiffusion(ReconstructionModel):
     # ---- the denoiser ------------------------------------------------------------------------
     def encode_radar(self, radar: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         """Radar ``[B, A, R, F]`` + mask ``[B, A, R]`` -> radar tokens ``[B, L, D]`` (once per sampling run)."""
-        if radar.dim() != 4 or radar.shape[-1] != self.hparams.n_freq:
-            raise UserInputError(f"radar must be [B, A, R, F={self.hparams.n_freq}], got {tuple(radar.shape)}")
+        if radar.dim() != 4 or radar.shape[-1] != self.hparams.num_freq:
+            raise UserInputError(f"radar must be [B, A, R, F={self.hparams.num_freq}], got {tuple(radar.shape)}")
         return self.radar_encoder(radar, mask) + self.token_type[0]
 
     def network_output(self, radar_tokens: torch.Tensor, h_t: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
@@ -241,16 +224,19 @@ class RadarDiffusion(ReconstructionModel):
                 latents[int(i)] = m
         return latents
 
+    def check_radar_spec(self, spec: RadarSpec) -> None:
+        """The data must be the full ``[A, R, F]`` radar with ``num_freq`` frequencies."""
+        num_freq = len(spec.grid.freq_hz)
+        if spec.roll_symmetric or num_freq != self.hparams.num_freq:
+            raise UserInputError(
+                f"{type(self).__name__}: expects [A, R, F={self.hparams.num_freq}] radar, the data's radar spec is "
+                f"{spec.describe()}; set num_freq or use a 3D DataModule"
+            )
+
     def on_fit_start(self) -> None:
-        """Copy the radar metadata from the DataModule; collect training latents and their statistics."""
+        """Adopt the DataModule's radar spec; collect training latents and their statistics."""
+        super().on_fit_start()
         datamodule = self.trainer.datamodule
-        if datamodule is not None:
-            self.hparams.radar_meta = radar_metadata(datamodule)
-            n_freq = len(self.hparams.radar_meta.get("freq_hz", []))
-            if n_freq and n_freq != self.hparams.n_freq:
-                raise UserInputError(
-                    f"model n_freq={self.hparams.n_freq} but the DataModule's radar has {n_freq} frequencies"
-                )
         if self.hparams.latent_cache:
             self._train_latents = load_latent_cache(self.hparams.latent_cache)
         elif datamodule is not None:
@@ -272,40 +258,30 @@ class RadarDiffusion(ReconstructionModel):
             return F.mse_loss(self.network_output(radar_tokens, h_t, t), self.diffusion.v_target(x0, t, noise))
         return F.mse_loss(self.denoise_tokens(radar_tokens, h_t, t), noise)
 
-    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
-        loss = self.diffusion_loss(batch)
-        self.log("train/loss", loss, prog_bar=True, on_step=True, on_epoch=True, batch_size=batch["radar"].shape[0])
-        return loss
+    def losses(self, batch: dict) -> dict[str, torch.Tensor]:
+        return {"loss": self.diffusion_loss(batch)}
 
-    def validation_step(self, batch: dict, batch_idx: int) -> None:
-        generator = torch.Generator(self.device).manual_seed(batch_idx)  # same noise every epoch
-        loss = self.diffusion_loss(batch, generator)
-        self.log("val/loss", loss, prog_bar=True, batch_size=batch["radar"].shape[0])
-
-    def test_step(self, batch: dict, batch_idx: int) -> None:
-        """Scoring happens in the metric callback through :meth:`reconstruct`."""
-
-    def configure_optimizers(self):
-        params = [p for p in self.parameters() if p.requires_grad]
-        return torch.optim.AdamW(params, lr=self.hparams.lr, weight_decay=self.hparams.weight_decay, foreach=True)
+    def eval_losses(self, batch: dict, batch_idx: int) -> dict[str, torch.Tensor]:
+        """The diffusion loss with noise and timesteps seeded by ``batch_idx``: the same every epoch."""
+        return {"loss": self.diffusion_loss(batch, torch.Generator(self.device).manual_seed(batch_idx))}
 
     # ---- sampling and meshes -----------------------------------------------------------------
     @torch.no_grad()
     def sample_latents(
         self,
         batch: dict,
-        samples: int | None = None,
+        num_samples: int | None = None,
         steps: int | None = None,
         eta: float | None = None,
         sampler: str | None = None,
-        seed: int | None = None,
+        sample_seed: int | None = None,
     ) -> torch.Tensor:
         """``K`` Stage-1 latents per input, ``[B, K, L, Z]`` (de-standardised), by DDIM or DDPM."""
         hp = self.hparams
-        k = int(samples or hp.samples)
+        k = int(num_samples or hp.num_samples)
         radar_tokens = self.encode_radar(batch["radar"].to(self.device), batch["radar_mask"].to(self.device))
         radar_tokens = radar_tokens.repeat_interleave(k, dim=0)
-        generator = torch.Generator(self.device).manual_seed(hp.seed if seed is None else seed)
+        generator = torch.Generator(self.device).manual_seed(hp.sample_seed if sample_seed is None else sample_seed)
         x = self.diffusion.sample(
             lambda h_t, t: self.denoise_tokens(radar_tokens, h_t, t),
             (radar_tokens.shape[0], self.n_levels, self.latent_dim),
@@ -346,14 +322,14 @@ class RadarDiffusion(ReconstructionModel):
 
     @torch.no_grad()
     def reconstruct_with_uncertainty(
-        self, batch: dict, samples: int | None = None, steps: int | None = None, resolution: int | None = None,
-        seed: int | None = None,
+        self, batch: dict, num_samples: int | None = None, steps: int | None = None, resolution: int | None = None,
+        sample_seed: int | None = None,
     ) -> list[tuple[Reconstruction, np.ndarray]]:
         """Per input: the mesh of the mean SDF of K sampled shapes, and the per-vertex SDF std across them.
 
         The std (unit-cube units) is where the K plausible shapes disagree: a cheap uncertainty map.
         """
-        latents = self.sample_latents(batch, samples=samples, steps=steps, seed=seed)
+        latents = self.sample_latents(batch, num_samples=num_samples, steps=steps, sample_seed=sample_seed)
         out = []
         for h in latents:
             mesh, spread = self.mean_mesh(h, resolution)
@@ -362,5 +338,5 @@ class RadarDiffusion(ReconstructionModel):
 
     @torch.no_grad()
     def reconstruct(self, batch: dict) -> list[Reconstruction]:
-        """Sample ``samples`` latents per input (DDIM by default), decode, marching cubes (mean SDF when K > 1)."""
+        """Sample ``num_samples`` latents per input (DDIM by default), decode, marching cubes (mean SDF when K > 1)."""
         return [recon for recon, _ in self.reconstruct_with_uncertainty(batch)]

@@ -8,15 +8,14 @@
   what ignoring the radar achieves.
 
 Both read the training records through the DataModule when a Trainer attaches them
-(``datamodule.train_records()`` for the meshes and radar, ``datamodule.transform("train")`` for
-the dB normalisation), and implement :class:`ReconstructionModel`, so ``radar2shape test``
+(``datamodule.train_records()`` for the meshes and radar, ``datamodule.radar_spec`` for the dB
+normalisation), and implement :class:`ReconstructionModel`, so ``radar2shape test``
 scores them with the same callback as every model. Nothing is trained: run them with
 ``radar2shape test`` only.
 """
 
 from __future__ import annotations
 
-import dataclasses
 
 import numpy as np
 import torch
@@ -45,7 +44,7 @@ def training_records(datamodule):
 
 
 class _Reference(ReconstructionModel):
-    """Shared plumbing: build from the DataModule once, in ``setup``; nothing to optimise."""
+    """Shared plumbing: build from the DataModule once, in ``setup``; no losses and no parameters to optimise."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -63,21 +62,16 @@ class _Reference(ReconstructionModel):
         if not self._ready:
             raise RuntimeError(f"{type(self).__name__}.fit_reference(datamodule) has not run (attach it to a Trainer)")
 
-    def test_step(self, batch: dict, batch_idx: int) -> None:
-        """Scoring happens in the metric callback through :meth:`reconstruct`."""
-
-    def validation_step(self, batch: dict, batch_idx: int) -> None:
-        """Scoring happens in the metric callback through :meth:`reconstruct`."""
-
-    def configure_optimizers(self):
-        return None
+    def losses(self, batch: dict) -> dict[str, torch.Tensor]:
+        """Nothing is trained, so there is nothing to log; scores come from :meth:`reconstruct`."""
+        return {}
 
 
 class NearestNeighbourReference(_Reference):
     """The mesh of the training shape whose dB response is closest to the input's over its observed cells.
 
-    The training responses go through the DataModule's own train transform with full observability
-    and no noise, so they are normalised exactly like the inputs. Distances use
+    The training responses are normalised by the DataModule's radar spec (every cell observed, no
+    noise), exactly like the inputs. Distances use
     ``|m.(x - y)|^2 = |x|^2 - 2 x.y + m.y^2`` (masked input cells are 0), three matrix products.
     Args: chunk: training responses compared per matrix product (bounds memory).
     """
@@ -88,9 +82,8 @@ class NearestNeighbourReference(_Reference):
 
     def fit_reference(self, datamodule) -> None:
         records = training_records(datamodule)
-        transform = dataclasses.replace(datamodule.transform("train"), observability="full", noise_db=None)
-        rng = np.random.default_rng(0)  # unused without noise or random windows
-        radar = [transform(records[i]["radar"], rng, i)[0] for i in range(len(records))]
+        spec = datamodule.radar_spec
+        radar = [spec.normalise(spec.to_db(records[i]["radar"])) for i in range(len(records))]
         self._radar = torch.from_numpy(np.stack(radar))
         self._records = records
         self._ready = True

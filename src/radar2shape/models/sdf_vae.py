@@ -90,6 +90,8 @@ class SDFVAE(ReconstructionModel):
             queries per decoder call while extracting meshes.
     """
 
+    optimizer_class = torch.optim.Adam
+
     def __init__(
         self,
         resolutions: list[int] = [8, 16, 32, 64],  # noqa: B006 (primitive default for the CLI)
@@ -179,40 +181,18 @@ class SDFVAE(ReconstructionModel):
         out.update({f"kl/level_{l}": kl_levels[l] for l in range(self.n_levels)})
         return out
 
+    def eval_losses(self, batch: dict, batch_idx: int) -> dict[str, torch.Tensor]:
+        """Deterministic validation/test losses: the posterior mean, all levels."""
+        return self.losses(batch, sample=False)
+
     def kl_weight(self) -> float:
         """KL weight at the current step (linear warm-up, then ``kl_weight``)."""
         warmup = self.hparams.kl_warmup_steps
         ramp = 1.0 if warmup <= 0 else min(1.0, self.global_step / warmup)
         return self.hparams.kl_weight * ramp
 
-    def _log_losses(self, stage: str, losses: dict[str, torch.Tensor], batch_size: int) -> None:
-        self.log_dict(
-            {f"{stage}/{k}": v.detach() for k, v in losses.items()},
-            prog_bar=False, on_step=stage == "train", on_epoch=True, batch_size=batch_size,
-        )
-        self.log(f"{stage}/sdf_l1_bar", losses["sdf_l1"].detach(), prog_bar=True, logger=False, batch_size=batch_size)
-
-    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
-        losses = self.losses(batch, sample=True)
-        self._log_losses("train", losses, batch["surface_points"].shape[0])
-        return losses["loss"]
-
-    def validation_step(self, batch: dict, batch_idx: int) -> None:
-        self._log_losses("val", self.losses(batch, sample=False), batch["surface_points"].shape[0])
-
-    def test_step(self, batch: dict, batch_idx: int) -> None:
-        self._log_losses("test", self.losses(batch, sample=False), batch["surface_points"].shape[0])
-
     def predict_step(self, batch: dict, batch_idx: int, dataloader_idx: int = 0) -> dict[str, torch.Tensor]:
         """Posterior of each shape for Stage 2: ``mu``, ``logvar`` ``[B, L, Z]`` and the record ``index``."""
         mu, logvar = self.encoder(check_points(batch, "surface_points"))
         index = batch.get("index", torch.arange(mu.shape[0]) + batch_idx * mu.shape[0])
         return {"mu": mu, "logvar": logvar, "index": index}
-
-    def configure_optimizers(self):
-        hp = self.hparams
-        optimizer = torch.optim.Adam(self.parameters(), lr=hp.lr, weight_decay=hp.weight_decay)
-        if hp.lr_decay_steps <= 0:
-            return optimizer
-        scheduler = torch.optim.lr_scheduler.StepLR(optimizer, hp.lr_decay_steps, gamma=hp.lr_decay)
-        return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}

@@ -10,10 +10,12 @@ from radar2shape.radar.io import RadarResponse, load_response, save_response
 from radar2shape.radar.masks import fixed_window_mask, random_window_mask
 from radar2shape.radar.signal import add_noise, to_db
 from radar2shape.radar.simulator import simulate
+from radar2shape.radar.spec import RadarSpec
 
 __all__ = [
     "RadarGrid",
     "RadarResponse",
+    "RadarSpec",
     "add_noise",
     "fixed_window_mask",
     "load_response",

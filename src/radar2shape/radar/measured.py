@@ -361,25 +361,15 @@ class GridInput:
     """A measurement on a model's grid: dBsm ``[A, R, F]`` (NaN where masked) and what was observed.
 
     ``mask [A, R]`` is True where every frequency the file covers has a value; ``freq_mask [F]``
-    marks the model frequencies inside the file's band; ``overlap`` is the covered fraction of
-    the model's band.
+    marks the model frequencies inside the file's band (the others are NaN); ``overlap`` is the
+    covered fraction of the model's band. The model's ``RadarSpec.normalise(db, mask)`` turns it
+    into the network input, as in training.
     """
 
     db: np.ndarray
     mask: np.ndarray
     freq_mask: np.ndarray
     overlap: float
-
-    def normalised(self, mean: float, std: float) -> np.ndarray:
-        """float32 ``(dB - mean) / std`` with 0 (the training mean) in every masked cell and frequency.
-
-        The models have a mask channel per (aspect, roll) cell but none per frequency, so
-        frequencies outside the file's band take the value a masked cell takes.
-        """
-        out = (self.db - mean) / std
-        out[~self.mask] = 0.0
-        out[..., ~self.freq_mask] = 0.0
-        return np.nan_to_num(out, nan=0.0).astype(np.float32)
 
 
 def band_overlap(freq_hz: np.ndarray, target_hz: np.ndarray) -> float:
