@@ -16,7 +16,7 @@ import sys
 from dataclasses import dataclass
 
 LIGHTNING_COMMANDS = {
-    "fit": "Train a model (Lightning CLI; --config conf/experiment/NAME.yaml).",
+    "fit": "Train a model (Lightning CLI; layered --config files, docs/configs.md).",
     "validate": "Run the validation loop of a model.",
     "test": "Test a model (--ckpt_path CKPT) with the metric callbacks.",
     "predict": "Run prediction (e.g. export Stage-1 latents).",

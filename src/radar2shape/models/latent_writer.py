@@ -1,6 +1,6 @@
 """Cache Stage-1 posteriors to a file so Stage 2 trains on latents without re-running the encoder.
 
-Used by ``radar2shape predict --config conf/experiment/sdf_vae_parts.yaml --ckpt_path CKPT``:
+Used by ``radar2shape predict --config conf/trainer/gpu.yaml --config conf/callbacks/shape_metrics.yaml --config conf/experiment/sdf_vae_parts.yaml --ckpt_path CKPT``:
 the SDF-VAE's ``predict_step`` returns ``{"mu", "logvar", "index"}`` per batch and this writer
 saves, at the end of the epoch, one ``torch.save`` file of plain tensors (loadable with
 ``torch.load(weights_only=True)``)::
