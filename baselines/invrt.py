@@ -52,8 +52,6 @@ class InvRT(ProfileModel):
         if loss not in LOSSES:
             raise ValueError(f"loss: expected one of {sorted(LOSSES)}, got {loss!r}")
         self.save_hyperparameters()
-        self.num_aspect, self.num_freq, self.profile_points = num_aspect, num_freq, profile_points
-        self.mesh_segments = mesh_segments
         self.embed = nn.Linear(num_freq, dim)
         self.register_buffer("aspect_code", sinusoidal_embedding(torch.arange(num_aspect), dim), persistent=False)
         self.queries = nn.Parameter(0.02 * torch.randn(profile_points, dim))

@@ -67,10 +67,11 @@ class ProfileModel(ReconstructionModel):
     :meth:`~ReconstructionModel.losses`; everything a metric needs comes from here.
     """
 
-    num_aspect: int
-    num_freq: int
-    profile_points: int
-    mesh_segments: int = 64
+    # The grid and profile sizes every roll-symmetric model declares as hyperparameters.
+    num_aspect = property(lambda self: int(self.hparams.num_aspect))
+    num_freq = property(lambda self: int(self.hparams.num_freq))
+    profile_points = property(lambda self: int(self.hparams.profile_points))
+    mesh_segments = property(lambda self: int(self.hparams.get("mesh_segments", 64)))
 
     def radar_input(self, batch: dict) -> torch.Tensor:
         """``[B, F + 1, A]``: the radar's frequencies as channels plus the observed-aspect mask.
@@ -185,8 +186,6 @@ class ProfileUNetDiffusion(ProfileModel):
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
-        self.num_aspect, self.num_freq, self.profile_points = num_aspect, num_freq, profile_points
-        self.mesh_segments = mesh_segments
         n_params = 2 * profile_points
         self.profile_in = nn.Linear(n_params, profile_channels * num_aspect)
         self.unet = UNet1D(num_freq + 1 + profile_channels, out_channels, base_channels, depth, time_dim=time_dim)
