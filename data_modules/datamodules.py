@@ -26,15 +26,30 @@ DEFAULT_POINTS = {
 }
 
 
+def _keep_range(name: str, value) -> tuple[float, float]:
+    """``value`` as a ``(low, high)`` kept-fraction range; one clear line naming ``name`` otherwise."""
+    pair = (value, value) if isinstance(value, (int, float)) else value
+    pair = tuple(pair) if isinstance(pair, (list, tuple)) else ()
+    if len(pair) != 2 or not all(isinstance(v, (int, float)) for v in pair) or not 0 < pair[0] <= pair[1] <= 1:
+        raise UserInputError(f"{name}: expected a kept fraction in (0, 1] or a [low, high] range of them, "
+                             f"got {value!r}")
+    return float(pair[0]), float(pair[1])
+
+
 class ShapeDataModule(ReconstructionDataModule):
     """Batches of 3D radar ``[B, A, R, F]`` with shape targets (docs/design.md section 10, batch keys).
 
     Args:
         root: dataset folder written by ``radar2shape build-data``.
-        observability: "partial" (train: random windows keeping ``train_keep`` of each axis;
-            val/test: a fixed-seed window keeping ``test_keep``) or "full".
+        observability: "partial" (train: random windows keeping a fraction in ``train_keep``;
+            val/test: a window keeping ``test_keep``, placed by ``seed + index``) or "full".
+        mask_rule: what the kept fraction is of: "per_axis" (of each axis, so ``test_keep=0.3``
+            observes ~9 % of the cells) or "cells" (of the (aspect, roll) cells, the paper's rule:
+            ``test_keep=0.3`` masks 70 % of the signal). Aspect-only data: the same under both.
         train_noise_db: None, a level in dB, or a ``[low, high]`` range drawn per sample.
         test_noise_db: None or a level in dB (val and test).
+        noise_reference: "absolute" (levels in dBsm) or "peak" (dB relative to each response's peak
+            |S|^2), for both splits.
         points: per split, subset sizes of surface/sdf/eval/occ points (-1 all, 0 none);
             merged over ``DEFAULT_POINTS``.
     """
@@ -46,7 +61,8 @@ class ShapeDataModule(ReconstructionDataModule):
                  floor_db: float = -100.0, observability: str = "partial",
                  train_keep: tuple[float, float] = (0.3, 1.0), test_keep: float = 0.3,
                  train_noise_db: float | tuple[float, float] | None = None, test_noise_db: float | None = None,
-                 points: dict[str, dict[str, int]] | None = None, pin_memory: bool = False):
+                 points: dict[str, dict[str, int]] | None = None, pin_memory: bool = False,
+                 mask_rule: str = "per_axis", noise_reference: str = "absolute"):
         super().__init__()
         self.save_hyperparameters()
         self.root = Path(root)
@@ -56,6 +72,9 @@ class ShapeDataModule(ReconstructionDataModule):
         self.points = {split: {**DEFAULT_POINTS[split], **((points or {}).get(split) or {})} for split in DEFAULT_POINTS}
         self._spec = dataset_radar_spec(self.root, self.manifest, float(floor_db), self.roll_symmetric)
         self.datasets: dict[str, RecordDataset] = {}
+        _keep_range("test_keep", test_keep)  # train_keep: checked by transform("train")
+        for split in ("train", "test"):
+            self.transform(split)  # bad observability, mask or noise options fail here, not mid-epoch
 
     @property
     def radar_spec(self) -> RadarSpec:
@@ -81,8 +100,10 @@ class ShapeDataModule(ReconstructionDataModule):
         hp = self.hparams
         train = split == "train"
         return RadarTransform(
-            spec=self.radar_spec, observability=hp.observability, keep=tuple(hp.train_keep) if train else hp.test_keep,
+            spec=self.radar_spec, observability=hp.observability,
+            keep=_keep_range("train_keep", hp.train_keep) if train else hp.test_keep,
             noise_db=hp.train_noise_db if train else hp.test_noise_db, mask_seed=hp.seed,
+            mask_rule=hp.mask_rule, noise_reference=hp.noise_reference,
         )
 
     def dataset(self, split: str) -> RecordDataset:

@@ -12,11 +12,11 @@ a killed build never leaves a half-written record, and resuming means "skip what
 from __future__ import annotations
 
 import json
-import os
-import uuid
 from pathlib import Path
 
 import numpy as np
+
+from radar2shape.atomic import atomic_open
 
 RECORD_KEYS = (
     "vertices", "faces",                      # normalised watertight mesh (float32, int32)
@@ -40,17 +40,9 @@ def skip_path(root: str | Path, split: str, record_id: str) -> Path:
 
 
 def _atomic_write(path: Path, write) -> None:
-    """Write via ``write(stream)`` to a unique temp file beside ``path``, fsync, then rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        with open(temp, "wb") as stream:
-            write(stream)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temp, path)
-    finally:
-        temp.unlink(missing_ok=True)
+    """Write via ``write(stream)`` through the project's one atomic writer (temp file, fsync, rename)."""
+    with atomic_open(path, "wb") as stream:
+        write(stream)
 
 
 def write_record(path: Path, arrays: dict[str, np.ndarray]) -> None:

@@ -56,9 +56,9 @@ def test_report_writes_table1_layout_csv_and_figure(grid, tmp_path):
     assert cli.main(["report", "--grid", str(grid), "--out", str(out)]) == 0
     text = (out / "table1.md").read_text()
     header = next(line for line in text.splitlines() if line.startswith("| model"))
-    assert header.count("full:") == 3 and header.count("partial (70 % masked):") == 3
+    assert header.count("full:") == 3 and header.count("partial (mask not recorded):") == 3  # no config, no hint
     table, runs = text.split("## Runs")
-    rows = {line.split("|")[1].strip(): line for line in table.splitlines() if line.startswith("| ")}
+    rows = {line.split("|")[1].strip(): line for line in table.split("###")[0].splitlines() if line.startswith("| ")}
     assert "**1.00 ± 0.10**" in rows["Radar2Shape"] and "**0.800 ± 0.050**" in rows["Radar2Shape"]
     assert "5.00 ± 0.10" in rows["TMNet"] and "**5.00" not in rows["TMNet"]
     assert rows["TMNet"].count("n/a") == 3  # partial not run
@@ -102,7 +102,7 @@ def test_posbr_runs_are_column_groups_and_test_only_runs_list_their_command(tmp_
     text = (out / "table1.md").read_text()
     header = next(line for line in text.splitlines() if line.startswith("| model"))
     assert header.count("| full:") == 3 and header.count("| PO-SBR test, full:") == 3
-    rows = {line.split("|")[1].strip(): line for line in text.split("## Runs")[0].splitlines() if line.startswith("| ")}
+    rows = {line.split("|")[1].strip(): line for line in text.split("###")[0].splitlines() if line.startswith("| ")}
     assert rows["Radar2Shape"].count("n/a") == 0 and "0.300 ± 0.050" in rows["Radar2Shape"]  # zero-shot cell
     assert rows["Radar2Shape + LoRA (PO-SBR fine-tuned)"].count("n/a") == 3 and "**0.400 ± 0.050**" in rows["Radar2Shape + LoRA (PO-SBR fine-tuned)"]
     assert "| radar2shape-full-sbr | done | test |  | 2.0 | 2.0 |" in text
@@ -217,3 +217,98 @@ def test_table1_grids_name_cells_and_train_stage1_first(name):
     assert {("radar2shape", "full-sbr"), ("radar2shape_lora", "partial-sbr")} <= cells
     assert {r.name: r.command for r in grid.runs if r.name.startswith(("nearest", "mean_shape"))} == {
         f"{m}-{o}": "test" for m in ("nearest", "mean_shape") for o in ("full", "partial")}
+
+
+def scored_run(run_dir, iou_of_index, n=25, config=None, dependence=0.25):
+    """A finished run with per-shape scores (``iou`` = iou_of_index(i)), logged counts and a saved test config."""
+    test = run_dir / "test" / "version_0"
+    scores_dir = test / "reconstructions" / "test" / "epoch_000"
+    scores_dir.mkdir(parents=True)
+    with (scores_dir / "scores.csv").open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["index", "label", "iou", "radar_dependence_iou"])
+        writer.writerows([i, 0, iou_of_index(i), dependence] for i in range(n))
+    if config is not None:
+        (test / "config.yaml").write_text(yaml.safe_dump({"data": {"class_path": "data_modules.ShapeDataModule",
+                                                                   "init_args": config}}))
+    ious = [iou_of_index(i) for i in range(n)]
+    metrics = {"iou_mean": sum(ious) / n, "iou_std": 0.1, "iou_count": n - 1, "num_shapes": n,
+               "radar_dependence_iou_mean": dependence, "radar_dependence_iou_se": 0.01,
+               "ceiling_iou_mean": 0.9, "ceiling_iou_std": 0.02,
+               "num_eval_points": 30000, "num_pred_points": 30000, "num_occ_points": 100000}
+    (run_dir / "metrics.json").write_text(json.dumps(metrics))
+    (run_dir / "done").write_text(json.dumps({"wall_seconds": 1.0}))
+
+
+def test_table1_subset_diagnostics_masks_and_counts(tmp_path):
+    from radar2shape.report_layouts import paper_subset
+
+    runs = tmp_path / "runs"
+    names = ["radar2shape-full", "radar2shape-partial", "tmnet-partial"]
+    path = tmp_path / "t.yaml"
+    path.write_text(yaml.safe_dump({"out_dir": str(runs), "runs": [{"name": n} for n in names]}))
+    cells = {"observability": "partial", "mask_rule": "cells", "test_keep": 0.3}
+    scored_run(runs / "radar2shape-full", lambda i: i / 100, config={"observability": "full"})
+    scored_run(runs / "radar2shape-partial", lambda i: i / 200, config=cells)
+    scored_run(runs / "tmnet-partial", lambda i: 0.1, config=cells, dependence=0.0)
+    out = tmp_path / "report"
+    assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
+    text = (out / "t.md").read_text()
+    main, subset, diagnostics = text.split("## Runs")[0].split("###")[0], *text.split("###")[1:3]
+    header = next(line for line in main.splitlines() if line.startswith("| model"))
+    assert header.count("| full:") == 3 and header.count("partial (70 % of cells masked):") == 3
+    # the paper's 20 shapes: a fixed subset of the 25 records, re-pooled from the per-shape scores
+    chosen = paper_subset(25)
+    assert len(set(chosen)) == 20 and chosen == sorted(chosen) and chosen == paper_subset(25) and max(chosen) < 25
+    assert paper_subset(12) == list(range(12))
+    expected = sum(i / 100 for i in chosen) / 20
+    rows = {line.split("|")[1].strip(): line for line in subset.splitlines() if line.startswith("| ")}
+    assert f"{expected:.3f} ± " in rows["Radar2Shape"].split("|")[3]
+    with (out / "t_20shapes.csv").open() as handle:
+        table = {r["model"]: r for r in csv.DictReader(handle)}
+    assert float(table["Radar2Shape"]["full/iou_mean"]) == pytest.approx(expected)
+    assert float(table["TMNet"]["partial/iou_mean"]) == pytest.approx(0.1)
+    # diagnostics: dependence ± standard error, ceiling, "n of N" shapes scored
+    rows = {line.split("|")[1].strip(): line for line in diagnostics.splitlines() if line.startswith("| ")}
+    assert rows["Radar2Shape"].split("|")[2:5] == [" **0.250 ± 0.010** ", " **0.900 ± 0.020** ", " 24 of 25 "]
+    assert "| 0.000 ± 0.010 |" in rows["TMNet"]
+    assert "Sampling: CD and F-score on 30,000 ground-truth and 30,000 predicted surface points, IoU on 100,000 occupancy points." in text
+    assert sorted(p.name for p in (out / "scores").iterdir()) == [f"{n}.csv" for n in names]
+    # runs that masked differently say so; a per-axis mask says "per axis"
+    config = dict(cells, mask_rule="per_axis")
+    (runs / "tmnet-partial" / "test" / "version_0" / "config.yaml").write_text(yaml.safe_dump(
+        {"data": {"class_path": "data_modules.ShapeDataModule", "init_args": config}}))
+    assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
+    assert "partial (masks differ: 70 % of cells masked, 70 % per axis): IoU" in (out / "t.md").read_text()
+
+
+def test_masking_from_run_names_without_config():
+    from radar2shape.report_layouts import masking
+    from radar2shape.reporting import Cell
+
+    def cell(name):
+        return Cell(name, Path("/nonexistent"), "done")
+
+    assert masking(cell("a-partial70cells"), "partial70cells") == "70 % of cells masked"
+    assert masking(cell("a-partial-axis"), "partial-axis") == "per axis"
+    assert masking(cell("a-full"), "full") is None
+
+
+def test_rollsym_diagnostics_and_aspect_masks(tmp_path):
+    matrix = {"model": {"unet": {}}, "obs": {"full": {}, "partial": {}}, "noise": {"low": {}}}
+    path = tmp_path / "rollsym.yaml"
+    path.write_text(yaml.safe_dump({"out_dir": str(tmp_path / "runs"), "matrix": matrix, "report": "rollsym"}, sort_keys=False))
+    run_dir = tmp_path / "runs" / "unet-partial-low"
+    scored_run(run_dir, lambda i: 0.5, n=4, config={"observability": "partial", "test_keep": 0.3})
+    (run_dir / "test" / "version_0" / "config.yaml").write_text(yaml.safe_dump(
+        {"data": {"class_path": "data_modules.ProfileDataModule", "init_args": {"observability": "partial", "test_keep": 0.3}}}))
+    (run_dir / "metrics.json").write_text(json.dumps({"iou_s_mean": 0.5, "iou_s_std": 0.0, "iou_s_count": 4, "num_shapes": 4,
+                                                      "radar_dependence_iou_s_mean": 0.2, "radar_dependence_iou_s_se": 0.05}))
+    out = tmp_path / "report"
+    assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
+    text = (out / "table.md").read_text()
+    assert "Partial (70 % of aspects masked): IoU-S" in text
+    assert "| Profile U-Net diffusion (ours) | n/a | n/a | **0.200 ± 0.050** | 4 of 4 |" in text
+    with (out / "diagnostics.csv").open() as handle:
+        row, = csv.DictReader(handle)
+    assert float(row["partial/radar_dependence_iou_s_se"]) == 0.05 and float(row["partial/iou_s_count"]) == 4

@@ -6,14 +6,21 @@
 Re-running the same command resumes. Job arrays: run ``--shard i/n`` for i = 0..n-1 (any order,
 any machines sharing the folder); the last shard to finish writes the manifest, or run
 ``--finalize`` once all are done.
+
+Arguments, the config and the output folder are checked before anything is written, so a
+refused command leaves no folder and no ``build_config.json`` behind; records and markers are
+written atomically (an interrupted build resumes, it never holds half a record).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
+from radar2shape.atomic import check_output_dir
 from radar2shape.errors import UserInputError
+from radar2shape.preflight import check_input_file
 
 
 def _shard(text: str) -> tuple[int, int]:
@@ -32,14 +39,33 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--shard", type=_shard, default=(0, 1), help="build only shard i of n (job arrays), e.g. 0/4")
     parser.add_argument("--finalize", action="store_true", help="only write the manifest of a finished sharded build")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.epilog = ("Bad input is one 'error:' line (exit code 2) and nothing is written; re-running "
+                     "the same command resumes an interrupted build.")
+
+
+def _check_arguments(args: argparse.Namespace) -> None:
+    """Everything checkable before the config is read; creates nothing."""
+    if args.num is not None and args.num < 1:
+        raise UserInputError(f"--num: expected a positive number of shapes, got {args.num}")
+    if args.workers < 1:
+        raise UserInputError(f"--workers: expected at least 1 worker process, got {args.workers}")
+    index, count = args.shard
+    if not 0 <= index < count:
+        raise UserInputError(f"--shard: expected i/n with 0 <= i < n, got {index}/{count}")
+    check_input_file(args.config, "--config", "a data config YAML")
+    check_output_dir(args.out, "--out")
 
 
 def main(args: argparse.Namespace) -> int:
-    from data_modules.build import build_dataset, finalize
+    _check_arguments(args)  # before the (slow) imports: a typo is refused at once
+    from data_modules.build import CONFIG_FILE, build_dataset, finalize
     from data_modules.config import load_build_config
 
     config = load_build_config(args.config, num=args.num)
     if args.finalize:
+        if not (Path(args.out) / CONFIG_FILE).is_file():
+            raise UserInputError(f"--out: {args.out} holds no build (no {CONFIG_FILE}); --finalize completes "
+                                 "a sharded build in its folder")
         manifest = finalize(config, args.out)
         print(f"manifest written: {args.out}/manifest.json ({manifest['counts']})")
         return 0

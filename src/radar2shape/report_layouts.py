@@ -2,19 +2,26 @@
 (``report: table1``) and ``radar2shape report --grid NAME`` writes it.
 
 - ``table1``: the paper's Table 1: rows = models, column groups = test conditions (``<model>-<group>``
-  runs), CD / IoU / F-score, one figure per group, the grid's runs and notes;
+  runs), CD / IoU / F-score on the whole test split and on the paper's 20 held-out shapes
+  (:func:`paper_subset`), the diagnostics (radar dependence, Stage-1 ceiling, shapes scored), one
+  figure per group, the grid's runs and notes;
 - ``rollsym``: the paper's Table 2: ``<model>-<obs>-<noise>`` runs, one table per noise level,
-  IoU-R / IoU-S / MATCH-S under full and partial observability;
+  IoU-R / IoU-S / MATCH-S under full and partial observability, with the diagnostics;
 - ``demo``: ``make demo``: ``<model>-<obs>`` test runs, one table per observability, and a figure
   of radar, ground truth and each model's reconstruction per test shape;
 - ``monocone``: the zero-shot monocone experiment (``scripts/monocone_experiment.py`` leaves
   per-target scores under ``<out_dir>/experiment/``), in Table 1's column layout.
+
+Column groups say what was masked ("partial (70 % of cells masked)", "(70 % per axis)"), read
+from each run's saved test config, else from hints in the run name (:func:`masking`).
 """
 
 from __future__ import annotations
 
 import csv
 import json
+import math
+import re
 import shutil
 from pathlib import Path
 
@@ -29,6 +36,14 @@ IOU_R = Column("iou_r", "IoU-R ↑", higher_is_better=True)
 IOU_S = Column("iou_s", "IoU-S ↑", higher_is_better=True)
 MATCH_S = Column("match_s", "MATCH-S ↓", higher_is_better=False)
 SHAPE_COLUMNS = (CHAMFER, IOU, FSCORE)
+# Diagnostics (docs/metrics.md): own-radar minus other-radar score, paired over shapes (± standard
+# error); the Stage-1 ceiling of latent models; how many shapes each mean pools.
+DEPENDENCE_IOU = Column("radar_dependence_iou", "radar dependence Δ IoU ↑", higher_is_better=True, spread="se")
+CEILING_IOU = Column("ceiling_iou", "Stage-1 ceiling IoU ↑", higher_is_better=True)
+SHAPES_IOU = Column("iou", "shapes scored (IoU)", higher_is_better=True, total="num_shapes")
+DEPENDENCE_IOU_S = Column("radar_dependence_iou_s", "radar dependence Δ IoU-S ↑", higher_is_better=True, spread="se")
+SHAPES_IOU_S = Column("iou_s", "shapes scored (IoU-S)", higher_is_better=True, total="num_shapes")
+SUBSET_SIZE, SUBSET_SEED = 20, 0  # the paper's "20 random held-out meshes"
 
 MODEL_TITLES = {
     "radar2shape": "Radar2Shape",
@@ -41,10 +56,140 @@ MODEL_TITLES = {
 }
 GROUP_TITLES = {
     "full": "full",
-    "partial": "partial (70 % masked)",
+    "partial": "partial",
     "full-sbr": "PO-SBR test, full",
     "partial-sbr": "PO-SBR test, partial",
 }
+
+
+# ---- what a run masked ------------------------------------------------------------------------
+def test_config(run_dir: Path) -> dict | None:
+    """The ``data.init_args`` and ``class_path`` of a run's saved test config (None without one)."""
+    import yaml
+
+    configs = sorted(run_dir.glob("test/**/config.yaml"))
+    if not configs:
+        return None
+    data = (yaml.safe_load(configs[-1].read_text()) or {}).get("data") or {}
+    return {"class_path": str(data.get("class_path", "")), **(data.get("init_args") or {})}
+
+
+def masking(cell: Cell, group: str) -> str | None:
+    """What the run's test mask hid, e.g. "70 % of cells masked", "70 % per axis"; None when full.
+
+    From the saved test config (``observability``, ``mask_rule``: ``cells`` or ``per_axis``,
+    ``test_keep``: the kept fraction); without one, from the run's group name (``cells`` / ``axis``
+    and a percentage, e.g. ``partial70cells``); "mask not recorded" when neither says.
+    """
+    config = test_config(cell.run_dir) if cell.run_dir != Path() else None
+    if config is not None and "observability" in config:
+        if config["observability"] != "partial":
+            return None
+        masked = round(100 * (1 - float(config.get("test_keep", 0.3))))
+        if "Profile" in config["class_path"]:  # one angular axis: both rules mask that share of aspects
+            return f"{masked} % of aspects masked"
+        rule = config.get("mask_rule", "per_axis")
+        return f"{masked} % of cells masked" if rule == "cells" else f"{masked} % per axis"
+    if "partial" not in group:
+        return None
+    percent = re.search(r"(\d+)", group)
+    amount = f"{percent.group(1)} % " if percent else ""
+    if "cell" in group:
+        return f"{amount}of cells masked"
+    if "axis" in group:
+        return f"{amount}per axis"
+    return "mask not recorded"
+
+
+def group_title(titles: dict[str, str]):
+    """A ``describe_group`` for a layout: the static title plus what the group's runs masked."""
+
+    def describe(group: str, cells: list[Cell]) -> str:
+        base = titles.get(group, group)
+        found = {masking(cell, group) for cell in cells} - {None}
+        if not found:
+            return base
+        return f"{base} ({found.pop()})" if len(found) == 1 else f"{base} (masks differ: {', '.join(sorted(found))})"
+
+    return describe
+
+
+# ---- per-shape scores: counts and the paper's 20-shape subset -------------------------------------
+def per_shape_scores(run_dir: Path) -> list[dict] | None:
+    """Rows of the last ``scores.csv`` the evaluator wrote for a run's test split (None if absent)."""
+    files = sorted(run_dir.glob("test/**/reconstructions/test/epoch_*/scores.csv"), key=lambda p: p.stat().st_mtime)
+    if not files:
+        return None
+    with files[-1].open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def paper_subset(n_records: int, size: int = SUBSET_SIZE, seed: int = SUBSET_SEED) -> list[int]:
+    """Record indices of the fixed held-out subset: ``default_rng(seed).choice(n_records, size)``, sorted.
+
+    The same for every model scored on the same split (all of it when it has at most ``size`` shapes).
+    """
+    if n_records <= size:
+        return list(range(n_records))
+    return sorted(int(i) for i in np.random.default_rng(seed).choice(n_records, size, replace=False))
+
+
+def pooled(rows: list[dict], keys) -> dict[str, float]:
+    """``<key>_mean|_std|_count`` (std ddof 0, as the evaluator) and ``_se`` of per-shape rows, ``num_shapes``."""
+    out = {"num_shapes": float(len(rows))}
+    for key in keys:
+        values = np.array([float(r[key]) for r in rows if r.get(key) not in (None, "")], float)
+        values = values[np.isfinite(values)]
+        if len(values):
+            out.update({f"{key}_mean": float(values.mean()), f"{key}_std": float(values.std()),
+                        f"{key}_count": float(len(values)),
+                        f"{key}_se": float(values.std(ddof=1) / math.sqrt(len(values))) if len(values) > 1 else math.nan})
+    return out
+
+
+def subset_cells(cells: list[Cell]) -> tuple[list[Cell], int | None]:
+    """The cells re-pooled over :func:`paper_subset` of their per-shape scores, and the split size it was drawn from."""
+    out, sizes = [], set()
+    for cell in cells:
+        rows = per_shape_scores(cell.run_dir) if cell.state == "done" else None
+        if not rows:
+            out.append(Cell(cell.name, cell.run_dir, cell.state))
+            continue
+        n_records = int(cell.metrics.get("num_shapes", len(rows)))
+        sizes.add(n_records)
+        chosen = set(paper_subset(n_records))
+        keys = [k for k in rows[0] if k not in ("index", "label")]
+        out.append(Cell(cell.name, cell.run_dir, cell.state, cell.record,
+                        pooled([r for r in rows if int(r["index"]) in chosen], keys)))
+    return out, (sizes.pop() if len(sizes) == 1 else None)
+
+
+def copy_scores(cells: list[Cell], folder: Path) -> int:
+    """Each finished run's per-shape test scores as ``folder/<run>.csv``; returns how many."""
+    copied = 0
+    for cell in cells:
+        files = sorted(cell.run_dir.glob("test/**/reconstructions/test/epoch_*/scores.csv"), key=lambda p: p.stat().st_mtime)
+        if cell.state == "done" and files:
+            folder.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(files[-1], folder / f"{cell.name}.csv")
+            copied += 1
+    return copied
+
+
+def sampling_line(cells: list[Cell]) -> str:
+    """Which point counts the shape metrics used, from the runs' logged counts."""
+    used = {}
+    for cell in cells:
+        m = cell.metrics
+        if "num_eval_points" in m or "num_occ_points" in m:
+            key = (int(m.get("num_eval_points", 0)), int(m.get("num_pred_points", m.get("num_eval_points", 0))),
+                   int(m.get("num_occ_points", 0)))
+            used.setdefault(key, []).append(cell.name)
+    if not used:
+        return "Point counts: not logged by these runs."
+    parts = [f"CD and F-score on {e:,} ground-truth and {p:,} predicted surface points, IoU on {o:,} occupancy points"
+             + ("" if len(used) == 1 else f" ({', '.join(names)})") for (e, p, o), names in used.items()]
+    return "Sampling: " + "; ".join(parts) + "."
 VIEW = (-55.0, 25.0)  # azimuth, elevation in degrees: front three-quarter
 
 
@@ -175,17 +320,25 @@ def radar_shapes_figure(cells: list[Cell], layout: Layout, path: Path, n_shapes:
 
 # ---- table1 --------------------------------------------------------------------------------------
 def write_table1(grid, out: Path, layout: Layout, shapes: int) -> Path:
-    """``NAME.md`` / ``NAME.csv`` (one table, groups side by side) and ``NAME_<group>.png``."""
+    """``NAME.md`` / ``NAME.csv`` (one table, groups side by side), ``NAME_20shapes.csv`` (the paper's
+    held-out subset), ``NAME_diagnostics.csv``, ``scores/<run>.csv`` (per-shape) and ``NAME_<group>.png``."""
     name = grid.name
     cells, outside = collect_cells(grid)
     tables = layout.tables(cells)
     _, rows, columns = tables[0] if tables else (None, [], [])
     write_csv(rows, columns, out / f"{name}.csv")
+    subset, n_records = subset_cells(cells)
+    _, subset_rows, subset_columns = (layout.tables(subset) or [(None, [], [])])[0]
+    write_csv(subset_rows, subset_columns, out / f"{name}_20shapes.csv")
+    _, diag_rows, diag_columns = (layout.tables(cells, layout.diagnostics) or [(None, [], [])])[0]
+    write_csv(diag_rows, diag_columns, out / f"{name}_diagnostics.csv")
+    copied = copy_scores(cells, out / "scores")
     groups = list(dict.fromkeys(w["group"] for c in cells if (w := layout.split(c.name))))
     figures = []
     for group in groups:
         done = [c for c in cells if c.state == "done" and (layout.split(c.name) or {}).get("group") == group]
-        figure = model_rows_figure(done, layout, out / f"{name}_{group}.png", shapes, GROUP_TITLES.get(group, group))
+        title = layout.group_title(group, [c for c in cells if (layout.split(c.name) or {}).get("group") == group])
+        figure = model_rows_figure(done, layout, out / f"{name}_{group}.png", shapes, title)
         figures += [figure] if figure else []
     text = [
         f"# {name}: reconstruction from radar",
@@ -195,6 +348,8 @@ def write_table1(grid, out: Path, layout: Layout, shapes: int) -> Path:
         "best of each column in bold. `n/a`: run missing, failed, or the metric is undefined (IoU of point sets).",
         "",
         markdown_table(rows, columns),
+        "",
+        sampling_line(cells),
         "",
     ]
     if outside:  # not the grid's test protocol, so never in its table, its bold or its CSV
@@ -209,6 +364,27 @@ def write_table1(grid, out: Path, layout: Layout, shapes: int) -> Path:
         ]
     notes = run_notes(cells + outside)
     text += ["Notes on individual runs:", "", *notes, ""] if notes else []
+    text += [
+        f"### On the paper's {SUBSET_SIZE} held-out shapes",
+        "",
+        f"The same runs re-pooled over a fixed subset of the test split: record indices "
+        f"`numpy.random.default_rng({SUBSET_SEED}).choice(N, {SUBSET_SIZE}, replace=False)`"
+        + (f" with N = {n_records}" if n_records else "") + " (the whole split when N <= "
+        f"{SUBSET_SIZE}), from each run's per-shape scores (`scores/<run>.csv`, {copied} runs).",
+        "",
+        markdown_table(subset_rows, subset_columns),
+        "",
+        "### Diagnostics",
+        "",
+        "Radar dependence: IoU from the shape's own radar minus IoU from another test shape's radar (a fixed "
+        "derangement: the shape before it in the test split), mean ± standard error of the paired differences; "
+        "near zero means the model is a shape prior, whatever its IoU. Stage-1 ceiling: IoU of the first stage's "
+        "posterior means decoded (latent models only), a bound on what the second stage can reach. Shapes scored: "
+        "shapes with a defined IoU, of those evaluated.",
+        "",
+        markdown_table(diag_rows, diag_columns),
+        "",
+    ]
     text += ["## Runs", "", runs_table(cells + outside), ""]
     text += [f"![{f.stem}]({f.name})\n" for f in figures]
     path = out / f"{name}.md"
@@ -226,20 +402,30 @@ def noise_title(noise: str) -> str:
 
 
 def write_rollsym(grid, out: Path, layout: Layout, shapes: int) -> Path:
-    """``table.md`` / ``table.csv``: one table per noise level (CSV rows ``<noise>/<model>``)."""
+    """``table.md`` / ``table.csv`` / ``diagnostics.csv``: one table and one diagnostics table per noise
+    level (CSV rows ``<noise>/<model>``), and the per-shape scores ``scores/<run>.csv``."""
     cells, _ = collect_cells(grid)
     tables = layout.tables(cells)
-    sections = [f"### {layout.section_title(s)}\n\n{markdown_table(rows, columns)}" for s, rows, columns in tables]
+    diagnostics = layout.tables(cells, layout.diagnostics)
+    sections = [f"### {layout.section_title(s)}\n\n{markdown_table(rows, columns)}\n\n"
+                f"Diagnostics:\n\n{markdown_table(diag_rows, diag_columns)}"
+                for (s, rows, columns), (_, diag_rows, diag_columns) in zip(tables, diagnostics)]
+    copied = copy_scores(cells, out / "scores")
     text = "\n\n".join(
         [f"## Roll-symmetric reconstruction ({grid.path.name})",
          "Test-set mean ± std. IoU-R: radar IoU at 20 dB below peak; IoU-S: half-section IoU; "
-         "MATCH-S: mean matched-point distance (unit-cube units). Definitions: docs/rollsym.md.",
+         "MATCH-S: mean matched-point distance (unit-cube units). Definitions: docs/rollsym.md. "
+         "Diagnostics: radar dependence = IoU-S from the shape's own radar minus IoU-S from another test "
+         "shape's radar (a fixed derangement), mean ± standard error of the paired differences; shapes scored = "
+         f"shapes with a defined IoU-S, of those evaluated. Per-shape scores: `scores/<run>.csv` ({copied} runs).",
          *sections, "### Runs", runs_table(cells)]
     ) + "\n"
     (out / "table.md").write_text(text)
     if tables:
         csv_rows = [(f"{section}/{title}", metrics) for section, rows, _ in tables for title, metrics in rows]
         write_csv(csv_rows, tables[0][2], out / "table.csv")
+        diag_csv = [(f"{section}/{title}", metrics) for section, rows, _ in diagnostics for title, metrics in rows]
+        write_csv(diag_csv, diagnostics[0][2], out / "diagnostics.csv")
     return out / "table.md"
 
 
@@ -382,10 +568,12 @@ def _monocone_figure(surfaces, models: list[str], layout: Layout, setting: str, 
 LAYOUTS: dict[str, Layout] = {
     layout.name: layout
     for layout in [
-        Layout("table1", SHAPE_COLUMNS, write_table1, ("row", "group"), MODEL_TITLES, GROUP_TITLES),
+        Layout("table1", SHAPE_COLUMNS, write_table1, ("row", "group"), MODEL_TITLES, GROUP_TITLES,
+               diagnostics=(DEPENDENCE_IOU, CEILING_IOU, SHAPES_IOU), describe_group=group_title(GROUP_TITLES)),
         Layout("rollsym", (IOU_R, IOU_S, MATCH_S), write_rollsym, ("row", "group", "section"),
                {"unet": "Profile U-Net diffusion (ours)", "invrt": "InvRT"}, {"full": "Full", "partial": "Partial"},
-               noise_title),
+               noise_title, diagnostics=(DEPENDENCE_IOU_S, SHAPES_IOU_S),
+               describe_group=group_title({"full": "Full", "partial": "Partial"})),
         Layout("demo", SHAPE_COLUMNS, write_demo, ("row", "section"),
                {"radar2shape": "Radar2Shape", "nearest": "nearest-neighbour", "mean_shape": "mean-shape"}, {},
                lambda obs: f"{obs.capitalize()} observability"),

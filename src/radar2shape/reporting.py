@@ -9,22 +9,34 @@ entry point (``radar2shape report`` and the end of ``radar2shape sweep``).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 
 @dataclass(frozen=True)
 class Column:
-    """A table column: the metric key (without split prefix), its header, and which way is better."""
+    """A table column: the metric key (without split prefix), its header, and which way is better.
+
+    A cell reads ``<key>_mean ± <key>_<spread>``: ``spread="std"`` (over shapes) or ``"se"`` (the
+    standard error of a mean, for paired differences). With ``total`` set the cell is a count
+    instead, ``<key>_count of <total>`` ("18 of 20": shapes that scored the metric, of those evaluated).
+    """
 
     key: str
     header: str
     higher_is_better: bool
     digits: int = 3
+    spread: str = "std"
+    total: str | None = None
+
+    def fields(self) -> tuple[str, str]:
+        """The two metric keys behind a cell (and the CSV's two columns)."""
+        return (f"{self.key}_count", self.total) if self.total else (f"{self.key}_mean", f"{self.key}_{self.spread}")
 
 
 def read_logged_metrics(metrics_csv: str | Path, prefix: str = "test/") -> dict[str, float]:
@@ -51,7 +63,7 @@ def _cell(mean: float | None, std: float | None, digits: int, bold: bool) -> str
 def markdown_table(rows: list[tuple[str, dict[str, float]]], columns: list[Column]) -> str:
     """Rows of (name, metrics) where metrics hold ``KEY_mean`` and ``KEY_std``; best per column in bold."""
     best: dict[str, float] = {}
-    for column in columns:
+    for column in (c for c in columns if not c.total):
         means = [m[f"{column.key}_mean"] for _, m in rows if not math.isnan(m.get(f"{column.key}_mean", math.nan))]
         if means:
             best[column.key] = max(means) if column.higher_is_better else min(means)
@@ -59,8 +71,10 @@ def markdown_table(rows: list[tuple[str, dict[str, float]]], columns: list[Colum
     for name, metrics in rows:
         cells = []
         for column in columns:
-            mean = metrics.get(f"{column.key}_mean")
-            std = metrics.get(f"{column.key}_std")
+            mean, std = (metrics.get(key) for key in column.fields())
+            if column.total:
+                cells.append("n/a" if mean is None or std is None else f"{mean:.0f} of {std:.0f}")
+                continue
             bold = mean is not None and column.key in best and mean == best[column.key]
             cells.append(_cell(mean, std, column.digits, bold))
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
@@ -68,14 +82,14 @@ def markdown_table(rows: list[tuple[str, dict[str, float]]], columns: list[Colum
 
 
 def write_csv(rows: list[tuple[str, dict[str, float]]], columns: list[Column], path: str | Path) -> None:
-    """The same table as CSV (mean and std in separate columns), written atomically."""
+    """The same table as CSV (mean and spread, or count and total, in separate columns), written atomically."""
     path = Path(path)
     tmp = path.with_suffix(path.suffix + ".tmp")
     with tmp.open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(["model"] + [f"{c.key}_{s}" for c in columns for s in ("mean", "std")])
+        writer.writerow(["model"] + [key for c in columns for key in c.fields()])
         for name, metrics in rows:
-            writer.writerow([name] + [metrics.get(f"{c.key}_{s}", "") for c in columns for s in ("mean", "std")])
+            writer.writerow([name] + [metrics.get(key, "") for c in columns for key in c.fields()])
     tmp.replace(path)
 
 
@@ -161,6 +175,8 @@ class Layout:
     row_titles: dict[str, str] = field(default_factory=dict)
     group_titles: dict[str, str] = field(default_factory=dict)
     section_title: Callable[[str], str] = str
+    diagnostics: tuple[Column, ...] = ()  # a second table: radar dependence, ceiling, counts
+    describe_group: Callable[[str, list], str] | None = None  # (group, its cells) -> title, e.g. from run configs
 
     def split(self, run_name: str) -> dict[str, str] | None:
         """``{"row": ..., "group": ..., ...}`` of a run name, or None for an auxiliary run."""
@@ -170,11 +186,20 @@ class Layout:
     def row_title(self, row: str) -> str:
         return self.row_titles.get(row, row)
 
-    def tables(self, cells: list[Cell]) -> list[tuple[str | None, list[tuple[str, dict]], list[Column]]]:
+    def group_title(self, group: str, cells: list[Cell]) -> str:
+        if self.describe_group is not None:
+            return self.describe_group(group, cells)
+        return self.group_titles.get(group, group)
+
+    def tables(self, cells: list[Cell], columns: tuple[Column, ...] | None = None
+               ) -> list[tuple[str | None, list[tuple[str, dict]], list[Column]]]:
         """``(section, rows, columns)`` per section in run order; rows are ``(title, metrics)`` with
-        metrics keyed ``<group>/<metric>_mean|_std`` (``<metric>_...`` in a layout without groups)."""
+        metrics keyed ``<group>/<metric>_mean|_std`` (``<metric>_...`` in a layout without groups).
+        ``columns``: default the layout's main columns (``self.diagnostics`` for the second table)."""
+        chosen = self.columns if columns is None else columns
         sections: dict[str | None, dict] = {}
         groups: dict[str | None, list[str]] = {}
+        members: dict[str | None, list[Cell]] = {}
         for cell in cells:
             where = self.split(cell.name)
             if where is None:
@@ -186,10 +211,12 @@ class Layout:
             section_groups += [group] if group not in section_groups else []
             prefix = f"{group}/" if group is not None else ""
             row.update({f"{prefix}{key}": value for key, value in cell.metrics.items()})
+            members.setdefault(group, []).append(cell)
         out = []
         for section, rows in sections.items():
-            columns = [Column(f"{g}/{c.key}", f"{self.group_titles.get(g, g)}: {c.header}", c.higher_is_better, c.digits)
-                       if g is not None else c for g in groups[section] for c in self.columns]
+            columns = [replace(c, key=f"{g}/{c.key}", header=f"{self.group_title(g, members[g])}: {c.header}",
+                               total=c.total and f"{g}/{c.total}")
+                       if g is not None else c for g in groups[section] for c in chosen]
             out.append((section, [(self.row_title(r), metrics) for r, metrics in rows.items()], columns))
         return out
 
@@ -206,8 +233,38 @@ def get_layout(name: str) -> Layout:
 
 def write_report(grid, out: str | Path | None = None, layout: str | None = None, shapes: int = 4) -> Path:
     """Write ``grid``'s report in ``layout`` (default: the grid's ``report``, else ``table1``) to
-    ``out`` (default ``reports/<grid name>``); returns the main Markdown file."""
+    ``out`` (default ``reports/<grid name>``); returns the main Markdown file.
+
+    All or nothing: the layout writes into a hidden staging folder inside ``out`` and its files
+    are moved into place only once every one is written, so a failed report changes no file.
+    """
+    import shutil
+    import tempfile
+
+    from radar2shape.atomic import check_output_dir
+    from radar2shape.errors import UserInputError
+
     chosen = get_layout(layout or grid.report or "table1")
     out = Path(out) if out else Path("reports") / grid.name
+    check_output_dir(out, "--out")
+    if not grid.out_dir.is_dir() or not any(grid.out_dir.iterdir()):
+        raise UserInputError(f"{grid.path}: no runs to report: out_dir {grid.out_dir} is missing or empty "
+                             f"(run 'radar2shape sweep {grid.path}' first)")
+    created = [folder for folder in (out, *out.parents) if not folder.exists()]
     out.mkdir(parents=True, exist_ok=True)
-    return chosen.write(grid, out, chosen, shapes)
+    staging = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
+    try:
+        main = chosen.write(grid, staging, chosen, shapes)
+        for path in sorted(p for p in staging.rglob("*") if p.is_file()):
+            target = out / path.relative_to(staging)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            path.replace(target)
+        return out / main.relative_to(staging)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        for folder in created:  # deepest first; only the folders this call made, once empty again
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)

@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
 import re
 import shutil
 import sys
@@ -245,9 +244,16 @@ def stale_because(grid: Grid, run: Run) -> str | None:
 
 
 def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    from radar2shape.atomic import write_text_atomic
+
+    write_text_atomic(path, text)
+
+
+def check_out_dir(grid: Grid) -> None:
+    """Refuse, before any run starts, an ``out_dir`` that is a file or lies in a read-only folder."""
+    from radar2shape.atomic import check_output_dir
+
+    check_output_dir(grid.out_dir, f"{grid.path}: key 'out_dir'")
 
 
 def _last_checkpoint(fit_dir: Path) -> Path:
@@ -268,9 +274,10 @@ def _test_metrics(test_dir: Path) -> dict[str, float]:
 
 
 def _cli(command: str, args: list[str]) -> None:
-    from radar2shape.cli import main
+    from radar2shape import cli
 
-    code = main([command, *args])
+    with cli.errors_raised():  # a failed run keeps its traceback in its folder
+        code = cli.main([command, *args])
     if code:
         raise RuntimeError(f"radar2shape {command} exited with code {code}")
 

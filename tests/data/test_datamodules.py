@@ -154,3 +154,52 @@ def test_radar_spec_is_the_manifest_grid_and_train_statistics(parts_dataset, fru
     np.testing.assert_array_equal(dm.dataset("test")[0]["radar"].numpy(), spec.normalise(spec.to_db(raw)))
     profile = _module(frusta_dataset, ProfileDataModule).radar_spec
     assert profile.roll_symmetric and profile.grid.roll_rad.tolist() == [0.0] and profile.input_shape == (16, 16)
+
+
+def test_cells_rule_masks_the_requested_fraction_of_cells(parts_dataset):
+    dm = _module(parts_dataset, mask_rule="cells")
+    a, r, _ = dm.radar_shape
+    assert (a, r) == (16, 16)
+    for index in range(len(dm.dataset("test"))):  # 0.3 * 256 = 76.8 cells -> 77 = 7 x 11 (70 % masked)
+        mask = dm.dataset("test")[index]["radar_mask"].numpy()
+        rows, cols = mask.any(axis=1), mask.any(axis=0)
+        assert (mask == np.outer(rows, cols)).all() and _windows(rows) == 1 and _windows(cols) == 1
+        assert mask.sum() == 77 and {rows.sum(), cols.sum()} == {7, 11}
+    train = dm.dataset("train")
+    for epoch in range(3):
+        mask = train[(epoch, 0)]["radar_mask"].numpy()
+        assert 77 <= mask.sum() <= 256 and _windows(mask.any(axis=0)) == 1
+    per_axis = _module(parts_dataset).dataset("test")[0]["radar_mask"].numpy()
+    assert per_axis.sum() == 25  # round(0.3 * 16) = 5 per axis: ~10 % of the cells
+
+
+def test_peak_relative_noise_has_the_stated_power_below_the_peak():
+    spec = RadarSpec(RadarGrid(np.zeros(64), np.zeros(64), np.ones(64)), db_mean=0.0, db_std=1.0, floor_db=-400.0)
+    transform = RadarTransform(spec, observability="full", noise_db=-40.0, noise_reference="peak")
+    response = np.zeros((64, 64, 64), np.complex64)
+    response[3, 4, 5] = 100.0  # peak power 1e4 m^2 -> noise 1 m^2 everywhere
+    radar, _ = transform(response, np.random.default_rng(0), 0)
+    power = np.mean(np.delete(10.0 ** (radar.astype(np.float64).ravel() / 10.0), 3 * 64 * 64 + 4 * 64 + 5))
+    assert power == pytest.approx(1.0, rel=0.03)  # 262,143 exponential draws: s.e. 0.2 %
+
+
+def test_peak_noise_option_reaches_the_batches(parts_dataset, frusta_dataset):
+    absolute = _module(parts_dataset, observability="full", test_noise_db=-20.0).dataset("test")[0]["radar"]
+    peak = _module(parts_dataset, observability="full", test_noise_db=-20.0, noise_reference="peak")
+    assert peak.transform("test").noise_reference == "peak"
+    assert not torch.equal(absolute, peak.dataset("test")[0]["radar"])
+    profile = _module(frusta_dataset, ProfileDataModule, mask_rule="cells", noise_reference="peak",
+                      test_noise_db=-10.0)
+    assert profile.dataset("test")[0]["radar_mask"].sum() == 5  # 0.3 * 16 aspects = 4.8 -> 5
+
+
+@pytest.mark.parametrize("option, match", [
+    ({"mask_rule": "square"}, "mask_rule: expected one of per_axis, cells"),
+    ({"noise_reference": "mean"}, "noise_reference: expected one of absolute, peak"),
+    ({"test_keep": 0.0}, "test_keep: expected a kept fraction"),
+    ({"train_keep": [0.8, 0.3]}, "train_keep: expected a kept fraction"),
+    ({"observability": "half"}, "observability: expected 'full' or 'partial'"),
+])
+def test_bad_observability_and_noise_options_name_the_option(parts_dataset, option, match):
+    with pytest.raises(UserInputError, match=match):
+        _module(parts_dataset, **option)

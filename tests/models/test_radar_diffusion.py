@@ -251,3 +251,17 @@ def test_overfit_eight_shapes_from_their_radar(tmp_path):
                                  truth["occ_inside"][i].numpy(), 5000)["iou"] for i, rec in enumerate(recs)]
     print(f"eight-shape overfit: mean IoU {np.mean(ious):.3f}, per shape {np.round(ious, 3).tolist()}")
     assert np.mean(ious) >= 0.7, np.round(ious, 3)
+
+
+def test_ceiling_decodes_the_stage1_posterior_means(stage1_ckpt):
+    """The evaluator's Stage-1 ceiling: the true shapes' posterior means meshed as Stage 2 meshes its samples."""
+    assert TINY_STAGE2["mesh_resolution"] == TINY_STAGE1["mesh_resolution"]  # the same grid on both sides
+    model = tiny_model(stage1_ckpt).eval()
+    batch = sphere_batch()
+    ceiling = model.reconstruct_ceiling(batch)
+    direct = model.stage1.reconstruct(batch)  # Stage 1 decoding its own posterior means
+    assert len(ceiling) == 2
+    for ours, theirs in zip(ceiling, direct):
+        np.testing.assert_allclose(ours.mesh.bounds, theirs.mesh.bounds, atol=1e-5)
+        assert len(ours.mesh.faces) == len(theirs.mesh.faces) > 0
+    assert model.reconstruct_ceiling(radar_batch(2)) is None  # no surface points: no ceiling

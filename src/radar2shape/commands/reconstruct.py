@@ -11,24 +11,44 @@ paper does with measured data. The checkpoint may be a :class:`RadarDiffusion` (
 roll-symmetric profile model (``ProfileUNetDiffusion``, ``InvRT``), which takes the aspect-only
 response directly. Everything about the radar (grid, dB floor and train statistics) comes from
 the :class:`~radar2shape.radar.spec.RadarSpec` stored in the checkpoint: no dataset is needed.
+
+Every option, output path and input file is checked before the model runs (the marching-cubes
+grid against a memory limit too); a response with no measurement (every cell at the model's dB
+floor, e.g. all zeros) is refused unless ``--allow-empty``. All outputs (mesh, ``--save-input``,
+``--spread``, ``--png``) are written together at the end, atomically: a failed run leaves none.
+torch and Lightning are imported only once the arguments are parsed.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import math
+import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 
+from radar2shape.atomic import atomic_path, atomic_paths, check_output_path
 from radar2shape.errors import UserInputError
-from radar2shape.models.base import RADAR_SPEC_KEY
-from radar2shape.radar.measured import FORMATS, MIN_OVERLAP, GridInput, read_measured, resample
-from radar2shape.radar.spec import RadarSpec
+from radar2shape.preflight import add_memory_option, check_input_file, check_memory, memory_limit_bytes
+
+if TYPE_CHECKING:
+    import torch
+
+    from radar2shape.radar.measured import GridInput
+    from radar2shape.radar.spec import RadarSpec
 
 RADAR_DIFFUSION = "radar2shape.models.radar_diffusion.RadarDiffusion"
+RADAR_SPEC_KEY = "radar_spec"  # = models.base.RADAR_SPEC_KEY (not imported: it needs Lightning)
+FORMATS = ("austin", "csv", "npz")  # = radar.measured.FORMATS
+MIN_OVERLAP = 0.5  # = radar.measured.MIN_OVERLAP
+MESH_OUT_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb")  # = geometry.mesh_io.WRITE_SUFFIXES
+IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+# Peak bytes per marching-cubes cell: float32 query points [N^3, 3], SDF values and their copy.
+BYTES_PER_GRID_CELL = 24
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
@@ -40,7 +60,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         help="measured response file (several Austin .txt files combine, e.g. one per frequency)")
     parser.add_argument("--format", choices=FORMATS, help="format of --measured (default: from the suffix: "
                         ".txt austin, .csv csv, .npz npz)")
-    parser.add_argument("--out", required=True, type=Path, help="output mesh (.obj, or any suffix trimesh writes)")
+    parser.add_argument("--out", required=True, type=Path, help="output mesh (.obj, .off, .ply, .stl or .glb)")
     parser.add_argument("--roll-symmetric", action="store_true", help="repeat an aspect-only response along roll")
     parser.add_argument("--calibration-db", type=float, default=0.0, help="added to every dB value (default 0)")
     parser.add_argument("--size-m", type=float, help="the measured object's longest side in metres: scales "
@@ -54,6 +74,11 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
     parser.add_argument("--png", type=Path, help="also write a PNG: input dB image and the reconstruction")
     parser.add_argument("--spread", type=Path, help="also write the per-vertex SDF std over the K samples (.npy)")
+    parser.add_argument("--allow-empty", action="store_true", help="reconstruct even when every cell of the "
+                        "response is at the model's dB floor (no measurement, e.g. an all-zero file)")
+    add_memory_option(parser)
+    parser.epilog = ("Bad input is one 'error:' line (exit code 2) and nothing is written; outputs appear "
+                     "complete or not at all.")
 
 
 def _model_class(path: Path, hparams: dict):
@@ -78,14 +103,15 @@ def load_model(path: Path):
     A checkpoint without a radar spec (saved before checkpoints stored one) is refused: its
     normalisation cannot be recovered without the training data, so the model must be retrained.
     """
-    if not path.is_file():
-        raise UserInputError(f"--ckpt: {path} not found")
-    try:
-        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
-        hparams = dict(checkpoint.get("hyper_parameters") or {})
-    except (KeyError, TypeError, ValueError, RuntimeError, AttributeError, EOFError, OSError) as err:
-        raise UserInputError(f"--ckpt: {path} is not a reconstruction model checkpoint ({type(err).__name__}: {err})") from err
-    cls = _model_class(path, hparams)
+    from radar2shape.checkpoints import load_checkpoint
+    from radar2shape.radar.spec import RadarSpec
+
+    checkpoint = load_checkpoint(path, "a reconstruction model checkpoint", label="--ckpt")
+    hparams = checkpoint.get("hyper_parameters")
+    if not isinstance(hparams, dict):
+        raise UserInputError(f"--ckpt: {path}: 'hyper_parameters' is a {type(hparams).__name__}, expected a dict "
+                             "(not a reconstruction model checkpoint)")
+    cls = _model_class(path, dict(hparams))
     if checkpoint.get(RADAR_SPEC_KEY) is None:
         raise UserInputError(f"--ckpt: {path} stores no radar spec (it was saved before checkpoints stored one, "
                              "or not fitted on a radar DataModule); retrain the model")
@@ -108,6 +134,8 @@ def measured_input(paths: list[Path], fmt: str | None, spec: RadarSpec, roll_sym
                    calibration_db: float = 0.0, size_m: float | None = None,
                    min_overlap: float = MIN_OVERLAP) -> GridInput:
     """A file on the spec's grid; a roll-symmetric spec takes an aspect-only response at its one roll."""
+    from radar2shape.radar.measured import read_measured, resample
+
     measurement = read_measured(paths, fmt)
     if spec.roll_symmetric and not measurement.aspect_only:
         raise UserInputError(f"{measurement.source}: a profile model needs an aspect-only response (one roll angle), "
@@ -120,6 +148,8 @@ def measured_input(paths: list[Path], fmt: str | None, spec: RadarSpec, roll_sym
 
 def model_batch(spec: RadarSpec, grid: GridInput) -> dict[str, torch.Tensor]:
     """The one-sample batch the model sees: ``spec.normalise``d radar and its mask (roll dropped when roll-symmetric)."""
+    import torch
+
     radar = torch.from_numpy(spec.normalise(grid.db, grid.mask))[None]
     mask = torch.from_numpy(grid.mask)[None]
     if spec.roll_symmetric:
@@ -167,30 +197,69 @@ def save_png(path: Path, db: np.ndarray, spec: RadarSpec, mesh, title: str) -> N
         ax.imshow(depth_image(points, azimuth, elevation), cmap="viridis", vmin=-0.6, vmax=0.6)
         ax.set(title=f"reconstruction ({azimuth:g}, {elevation:g} deg)", xticks=[], yticks=[])
     fig.suptitle(title, fontsize=9)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
+    with atomic_path(path) as temp:
+        fig.savefig(temp, dpi=100)
 
 
-def _check_options(args: argparse.Namespace, model, profile: bool) -> None:
+def _check_arguments(args: argparse.Namespace) -> list[Path]:
+    """Everything checkable without the model; returns the output paths (the mesh first)."""
     for name in ("samples", "steps", "resolution"):
         value = getattr(args, name)
         if value is not None and value < (2 if name == "resolution" else 1):
             raise UserInputError(f"--{name}: expected a positive integer, got {value}")
+    if args.seed < 0:
+        raise UserInputError(f"--seed: expected a non-negative integer, got {args.seed}")
     if args.format is not None and args.measured is None:
         raise UserInputError("--format applies to --measured files (--radar is always the simulate .npz)")
     if not 0.0 < args.min_overlap <= 1.0:
         raise UserInputError(f"--min-overlap: expected a fraction in (0, 1], got {args.min_overlap}")
+    if not math.isfinite(args.calibration_db):
+        raise UserInputError(f"--calibration-db: expected a finite number of dB, got {args.calibration_db}")
+    if args.size_m is not None and not (math.isfinite(args.size_m) and args.size_m > 0):
+        raise UserInputError(f"--size-m: expected a positive number of metres, got {args.size_m}")
+    outputs = {"--out": check_output_path(args.out, "--out", MESH_OUT_SUFFIXES)}
+    for name, suffixes in (("save_input", (".npz",)), ("spread", (".npy",)), ("png", IMAGE_SUFFIXES)):
+        if getattr(args, name) is not None:
+            label = f"--{name.replace('_', '-')}"
+            outputs[label] = check_output_path(getattr(args, name), label, suffixes)
+    inputs = [args.ckpt] + ([args.radar] if args.radar is not None else list(args.measured))
+    seen: dict[Path, str] = {Path(p).resolve(): "an input" for p in inputs}
+    for label, path in outputs.items():
+        other = seen.setdefault(path.resolve(), label)
+        if other != label:
+            raise UserInputError(f"{label}: {path} is also {other}; expected a separate output file")
+    for path in inputs[1:]:
+        check_input_file(path, "--radar" if args.radar is not None else "--measured", "a radar response file")
+    return list(outputs.values())
+
+
+def _check_options(args: argparse.Namespace, model, profile: bool) -> None:
+    """The options against the loaded model, and the memory its meshing needs."""
     if profile:
         unused = [f"--{n}" for n in ("steps", "resolution", "spread") if getattr(args, n) is not None]
         if args.samples is not None and "num_samples" not in model.hparams:
             unused.append("--samples")
         if unused:
             raise UserInputError(f"{', '.join(unused)}: not used by {type(model).__name__} (a profile model)")
-    elif args.steps is not None and args.steps > model.hparams.num_steps:
+        return
+    if args.steps is not None and args.steps > model.hparams.num_steps:
         raise UserInputError(f"--steps: at most the model's {model.hparams.num_steps} steps, got {args.steps}")
+    resolution = int(args.resolution or model.hparams.get("mesh_resolution", 128))
+    check_memory(resolution**3 * BYTES_PER_GRID_CELL, f"--resolution {resolution} (a {resolution}^3 marching-cubes "
+                 "grid)", args.memory_limit_gb)
+
+
+def check_not_empty(grid: GridInput, spec: RadarSpec, name: str) -> None:
+    """Refuse a response whose every observed cell is at the dB floor: the model would see no measurement."""
+    values = grid.db[np.isfinite(grid.db)]
+    if values.size and np.all(values <= spec.floor_db):
+        raise UserInputError(f"{name}: every cell is at or below the model's dB floor ({spec.floor_db:g} dBsm): "
+                             "no measurement (an all-zero response?); pass --allow-empty to reconstruct anyway")
 
 
 def main(args: argparse.Namespace) -> int:
+    outputs = _check_arguments(args)
+    memory_limit_bytes(args.memory_limit_gb)  # a bad limit is refused before the model loads
     model = load_model(args.ckpt)
     spec = model.radar_spec
     profile = is_profile_model(model)
@@ -198,33 +267,38 @@ def main(args: argparse.Namespace) -> int:
     paths, fmt = ([args.radar], "npz") if args.radar is not None else (args.measured, args.format)
     grid = measured_input(paths, fmt, spec, args.roll_symmetric, args.calibration_db, args.size_m, args.min_overlap)
     name = paths[0].name
+    if not args.allow_empty:
+        check_not_empty(grid, spec, str(paths[0]))
     print(f"input {name}: {int(grid.mask.sum())} of {grid.mask.size} aspect x roll cells observed, "
           f"{int(grid.freq_mask.sum())} of {len(grid.freq_mask)} frequencies in band ({100 * grid.overlap:.0f} % overlap)")
-    if args.save_input:
-        args.save_input.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(args.save_input, db=grid.db, mask=grid.mask, freq_mask=grid.freq_mask,
-                 radar=spec.normalise(grid.db, grid.mask), aspect_rad=spec.grid.aspect_rad,
-                 roll_rad=spec.grid.roll_rad, freq_hz=spec.grid.freq_hz)
-        print(f"wrote {args.save_input}")
 
     start = time.perf_counter()
     recon, spread = reconstruct_input(model, grid, args.samples, args.steps, args.resolution, args.seed)
     seconds = time.perf_counter() - start
     mesh = recon.mesh
     if mesh is None or len(mesh.faces) == 0:
-        print(f"error: the reconstruction of {name} is empty (no surface)")
+        print(f"error: the reconstruction of {name} is empty (no surface); nothing written", file=sys.stderr)
         return 1
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    mesh.export(args.out)
+    written = [args.out]
+    with atomic_paths(*outputs) as temps:  # every output, or none
+        temp = dict(zip(outputs, temps))
+        mesh.export(temp[outputs[0]], file_type=args.out.suffix.lower().lstrip("."))
+        if args.save_input:
+            np.savez(temp[outputs[1]], db=grid.db, mask=grid.mask, freq_mask=grid.freq_mask,
+                     radar=spec.normalise(grid.db, grid.mask), aspect_rad=spec.grid.aspect_rad,
+                     roll_rad=spec.grid.roll_rad, freq_hz=spec.grid.freq_hz)
+            written.append(args.save_input)
+        if args.spread:
+            np.save(temp[outputs[len(written)]], spread)
+            written.append(args.spread)
+        if args.png:
+            save_png(temp[outputs[len(written)]], grid.db, spec, mesh, f"{name} -> {args.out.name}")
+            written.append(args.png)
     detail = f"{len(mesh.vertices)} vertices, {len(mesh.faces)} faces, {seconds:.2f} s"
     if spread is not None:
         detail += (f", {args.samples or model.hparams.num_samples} sample(s); SDF spread over samples mean "
                    f"{spread.mean():.4f}, max {spread.max():.4f}")
     print(f"wrote {args.out}: {detail}")
-    if args.spread:
-        np.save(args.spread, spread)
-        print(f"wrote {args.spread}")
-    if args.png:
-        save_png(args.png, grid.db, spec, mesh, f"{name} -> {args.out.name}")
-        print(f"wrote {args.png}")
+    for path in written[1:]:
+        print(f"wrote {path}")
     return 0

@@ -4,6 +4,10 @@ The axes come from ``--grid`` (default conf/radar/default.yaml's values) and can
 one by one with START:STOP:COUNT (both ends included). The mesh is centred and scaled so its
 longest bounding-box side is ``--size-m`` metres (default: the grid's size_m, 1 m), unless
 ``--keep-size`` simulates it as given, in metres.
+
+Everything is checked before the simulation starts (axes, options, the memory the grid needs,
+both output paths, the mesh), and the outputs are written together at the end, atomically: a
+failed run leaves no file behind.
 """
 
 from __future__ import annotations
@@ -13,10 +17,15 @@ import time
 
 import numpy as np
 
+from radar2shape.atomic import atomic_paths, check_output_path
 from radar2shape.errors import UserInputError
-from radar2shape.geometry.mesh_io import load_mesh
-from radar2shape.geometry.normalise import normalise, scaled
-from radar2shape.radar import RadarGrid, save_response, simulate, to_db
+from radar2shape.preflight import add_memory_option, check_input_file, check_memory
+
+# Mesh, radar and plotting modules are imported in main(): ``--help`` and argument errors stay fast.
+IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+# Peak bytes per (aspect, roll, frequency) cell: the complex64 result, the complex128 phase
+# correction and its cast, the reordered copy and the copy written.
+BYTES_PER_CELL = 48
 
 
 def _range(text: str, name: str) -> np.ndarray:
@@ -49,10 +58,16 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--bounces", type=int, default=5, help="sbr: bounces traced, >= 1 (1 = PO only)")
     parser.add_argument("--rays-per-wavelength", type=float, default=8.0,
                         help="sbr: ray tubes per wavelength at the highest frequency, > 0")
-    parser.add_argument("--plot", help="also write a PNG of the dB response")
+    parser.add_argument("--plot", help="also write a picture of the dB response (.png, .pdf, .svg, .jpg)")
+    add_memory_option(parser)
+    parser.epilog = ("Bad input is one 'error:' line (exit code 2) and nothing is written; outputs appear "
+                     "complete or not at all.")
 
 
 def main(args: argparse.Namespace) -> int:
+    from radar2shape.radar.grid import RadarGrid
+    from radar2shape.radar.sbr import check_options
+
     grid = RadarGrid.from_yaml(args.grid) if args.grid else RadarGrid.default()
     aspect = np.radians(_range(args.aspect_deg, "--aspect-deg")) if args.aspect_deg else grid.aspect_rad
     roll = np.radians(_range(args.roll_deg, "--roll-deg")) if args.roll_deg else grid.roll_rad
@@ -61,6 +76,21 @@ def main(args: argparse.Namespace) -> int:
     if size is not None and not (np.isfinite(size) and size > 0):
         raise UserInputError(f"--size-m: expected a positive number of metres, got {size}")
     grid = RadarGrid(aspect, roll, freq, size or 1.0)  # validates the axes before any work
+    if args.method == "sbr":
+        check_options(args.bounces, args.rays_per_wavelength)
+    cells = len(grid.aspect_rad) * len(grid.roll_rad) * len(grid.freq_hz)
+    check_memory(cells * BYTES_PER_CELL, f"a response of {len(grid.aspect_rad)} x {len(grid.roll_rad)} x "
+                 f"{len(grid.freq_hz)} (aspect x roll x freq)", args.memory_limit_gb)
+    outputs = [check_output_path(args.out, "--out", (".npz",))]
+    if args.plot:
+        outputs.append(check_output_path(args.plot, "--plot", IMAGE_SUFFIXES))
+        if outputs[1].resolve() == outputs[0].resolve():
+            raise UserInputError(f"--plot: {args.plot} is also --out; expected two different files")
+    check_input_file(args.mesh, "mesh", "a mesh file")
+
+    from radar2shape.geometry.mesh_io import load_mesh
+    from radar2shape.geometry.normalise import normalise, scaled
+    from radar2shape.radar import save_response, simulate, to_db
 
     mesh = load_mesh(args.mesh)
     if size is not None:
@@ -70,12 +100,14 @@ def main(args: argparse.Namespace) -> int:
     response = simulate(mesh, grid.aspect_rad, grid.roll_rad, grid.freq_hz, method=args.method,
                         shadowing=not args.no_shadow, **(sbr_options if args.method == "sbr" else {}))
     seconds = time.perf_counter() - start
-    out = save_response(args.out, response, grid.aspect_rad, grid.roll_rad, grid.freq_hz, size_m=size)
-    print(f"wrote {out}: response {list(response.shape)} (aspect, roll, freq), "
+    with atomic_paths(*outputs) as temps:  # both files, or neither
+        save_response(temps[0], response, grid.aspect_rad, grid.roll_rad, grid.freq_hz, size_m=size)
+        if args.plot:
+            from radar2shape.radar.plot import plot_response  # matplotlib only when asked for
+
+            plot_response(temps[1], response, grid.aspect_rad, grid.roll_rad, grid.freq_hz, title=str(args.mesh))
+    print(f"wrote {outputs[0]}: response {list(response.shape)} (aspect, roll, freq), "
           f"{len(mesh.faces)} faces, peak {to_db(response).max():.1f} dBsm, {seconds:.2f} s")
     if args.plot:
-        from radar2shape.radar.plot import plot_response  # matplotlib only when asked for
-
-        png = plot_response(args.plot, response, grid.aspect_rad, grid.roll_rad, grid.freq_hz, title=str(args.mesh))
-        print(f"wrote {png}")
+        print(f"wrote {outputs[1]}")
     return 0

@@ -28,6 +28,7 @@ def main(args: argparse.Namespace) -> int:
             state = "todo" if not sweep.is_done(run_dir) or sweep.stale_because(grid, run) else "done"
             print(f"{run.name} [{state}]: {run.command} {' '.join(run.args(run_dir / run.command))}")
         return 0
+    sweep.check_out_dir(grid)
     start = time.perf_counter()
     with sweep.torch_threads(args.threads or grid.threads):
         sweep.run_prepare(grid)

@@ -15,6 +15,8 @@ import trimesh
 from radar2shape.errors import UserInputError
 
 MESH_SUFFIXES = (".off", ".obj", ".ply", ".stl", ".glb", ".gltf")
+# Formats written as one self-contained file (.gltf puts its buffers in extra files).
+WRITE_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb")
 
 
 class MeshError(UserInputError):
@@ -33,6 +35,19 @@ def load_mesh(path: str | Path) -> trimesh.Trimesh:
     if not isinstance(loaded, trimesh.Trimesh):
         raise MeshError(f"{path}: holds no triangle mesh (got {type(loaded).__name__})")
     return clean(loaded, name=str(path))
+
+
+def save_mesh(path: str | Path, mesh: trimesh.Trimesh) -> Path:
+    """Write ``mesh`` atomically in the format of the suffix (one of ``WRITE_SUFFIXES``)."""
+    from radar2shape.atomic import atomic_path
+
+    path = Path(path)
+    if path.suffix.lower() not in WRITE_SUFFIXES:
+        raise UserInputError(f"{path}: cannot write a mesh as {path.suffix or '(no suffix)'!r} "
+                             f"(expected one of {', '.join(WRITE_SUFFIXES)})")
+    with atomic_path(path) as temp:
+        mesh.export(temp, file_type=path.suffix.lower().lstrip("."))
+    return path
 
 
 def clean(mesh: trimesh.Trimesh, name: str = "mesh") -> trimesh.Trimesh:

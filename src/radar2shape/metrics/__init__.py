@@ -8,11 +8,26 @@
 - ``callback``: ``ReconstructionEvaluator``, the Lightning callback every experiment uses.
 """
 
-from radar2shape.metrics.aggregate import ChamferDistance, FScore, MeanStd, VolumetricIoU, pool_scores
-from radar2shape.metrics.callback import ReconstructionEvaluator
-from radar2shape.metrics.functional import CHAMFER_SCALE, CHAMFER_WORST, FSCORE_TAU, chamfer_l2, fscore, iou
-from radar2shape.metrics.scorers import ProfileScorer, Scorer, ShapeScorer
-from radar2shape.metrics.scoring import score_reconstruction
+import importlib
+
+# Names resolve on first use, so ``radar2shape evaluate`` (functional + scoring) never imports
+# torchmetrics or Lightning, which the aggregate classes and the callback need.
+_HOMES = {
+    "ChamferDistance": "aggregate", "FScore": "aggregate", "MeanStd": "aggregate", "VolumetricIoU": "aggregate",
+    "pool_scores": "aggregate", "ReconstructionEvaluator": "callback", "CHAMFER_SCALE": "functional",
+    "CHAMFER_WORST": "functional", "FSCORE_TAU": "functional", "chamfer_l2": "functional", "fscore": "functional",
+    "iou": "functional", "ProfileScorer": "scorers", "Scorer": "scorers", "ShapeScorer": "scorers",
+    "score_reconstruction": "scoring",
+}
+
+
+def __getattr__(name: str):
+    if name not in _HOMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "CHAMFER_SCALE",

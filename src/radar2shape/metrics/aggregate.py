@@ -8,6 +8,7 @@ by adding them, which gives exactly the pooled mean and std.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import torch
@@ -101,6 +102,6 @@ def pool_scores(scores: Sequence[dict[str, float]], labels: Labels = None, num_c
     out = {}
     for name in names:
         metric = MeanStd(num_classes, sync_on_compute=False)
-        metric.update([s[name] for s in scores], labels)
+        metric.update([s.get(name, math.nan) for s in scores], labels)  # absent: not defined for that sample
         out[name] = metric.compute()
     return out

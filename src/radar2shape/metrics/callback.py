@@ -9,11 +9,20 @@ records (mesh .obj or points .ply + a PNG next to the ground truth) under
 ``<log dir>/reconstructions/<split>/epoch_<E>/``. So one process and N processes log and write
 the same. Validation is kept cheap by ``every_n_epochs`` and ``val_max_samples``; sanity-check
 batches are not scored.
+
+Two diagnostics run on the test split by default (docs/metrics.md): the **radar dependence**
+(each shape reconstructed a second time from another shape's radar, scored against its own
+truth: ``radar_dependence_<metric>`` = own minus swapped, logged with ``_mean``, ``_std`` and the
+standard error ``_se``) and the **ceiling** of models with a ``reconstruct_ceiling`` hook
+(``ceiling_<metric>``). Every metric also logs ``_count`` (shapes that scored it) beside
+``num_shapes`` (shapes evaluated), and ``num_surface_points`` / ``num_occ_points`` say at which
+sampling the shape metrics were taken.
 """
 
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import lightning as L
@@ -30,10 +39,29 @@ from radar2shape.models.base import batch_size_of
 
 SPLITS = ("val", "test")
 PICTURE_POINTS = 30_000  # surface samples drawn per saved reconstruction's PNG
+DEPENDENCE = "radar_dependence_"  # row prefix: own-radar score minus swapped-radar score
+CEILING = "ceiling_"  # row prefix: scores of the model's reconstruct_ceiling
+RADAR_KEYS = ("radar", "radar_mask")  # what the swap exchanges between shapes
 
 
 def _numpy(value) -> np.ndarray:
     return value.detach().cpu().numpy() if isinstance(value, torch.Tensor) else np.asarray(value)
+
+
+def take(batch: dict, rows: slice) -> dict:
+    """The samples ``rows`` of a batch: every per-sample tensor (or list) sliced, the rest kept."""
+    size = batch_size_of(batch)
+    out = {}
+    for key, value in batch.items():
+        sized = isinstance(value, list | tuple) or (isinstance(value, torch.Tensor) and value.dim() > 0)
+        per_sample = sized and len(value) == size
+        out[key] = value[rows] if per_sample else value
+    return out
+
+
+def standard_error(std: float, count: float) -> float:
+    """Standard error of a mean from the population std (ddof 0) of ``count`` values: std / sqrt(n - 1)."""
+    return std / math.sqrt(count - 1) if count > 1 else math.nan
 
 
 def _all_gather(trainer: L.Trainer, value) -> list:
@@ -59,6 +87,16 @@ class ReconstructionEvaluator(L.Callback):
         class_names: per-class names; default ``trainer.datamodule.class_names`` when present,
             else no per-class logging.
         save_dir: where files go; default the trainer's log dir.
+        radar_dependence: also reconstruct every scored shape from another shape's radar and
+            log own minus swapped per metric (``radar_dependence_<metric>``). The pairing is a
+            fixed derangement of the split in loader order: each shape gets the radar and radar
+            mask of the shape scored before it, the first shape that of the last (on each
+            process), whatever the batch size; a split of one shape has no dependence.
+        ceiling: score ``pl_module.reconstruct_ceiling(batch)`` as ``ceiling_<metric>`` when
+            the model has the hook and it returns reconstructions (latent models: Stage 1's
+            posterior means decoded).
+        diagnostics_on_val: run the two diagnostics on validation too (default: test only; each
+            costs about one more reconstruction per shape).
 
     Batches should carry ``index`` (record indices): it seeds the sampling, orders the rows and
     drops the records a distributed sampler repeats to even out the ranks.
@@ -72,12 +110,19 @@ class ReconstructionEvaluator(L.Callback):
         num_saved: int = 4,
         class_names: list[str] | None = None,
         save_dir: str | None = None,
+        radar_dependence: bool = True,
+        ceiling: bool = True,
+        diagnostics_on_val: bool = False,
     ):
         super().__init__()
         self.scorers = list(scorers) if scorers else [ShapeScorer()]
         self.every_n_epochs, self.val_max_samples = max(1, int(every_n_epochs)), val_max_samples
         self.num_saved, self.class_names, self.save_dir = int(num_saved), class_names, save_dir
+        self.radar_dependence, self.ceiling = bool(radar_dependence), bool(ceiling)
+        self.diagnostics_on_val = bool(diagnostics_on_val)
         self.results: dict[str, dict[str, dict]] = {}  # last computed, per split
+        self.counts: dict[str, dict[str, int]] = {}  # shapes evaluated and sampling sizes, per split
+        self._start_all()
 
     # -- Lightning hooks -------------------------------------------------------------------
     def setup(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
@@ -88,9 +133,16 @@ class ReconstructionEvaluator(L.Callback):
         self._names = [str(n) for n in names] if names else []
         for scorer in self.scorers:
             scorer.setup(trainer, pl_module)
+        self._start_all()
+
+    def _start_all(self) -> None:
         self._seen = dict.fromkeys(SPLITS, 0)
         self._rows: dict[str, list[dict]] = {s: [] for s in SPLITS}
         self._saved: dict[str, list[tuple]] = {s: [] for s in SPLITS}  # (index, rec, gt points, row)
+        self._counts: dict[str, dict[str, int]] = {s: {} for s in SPLITS}  # sampling sizes, min over batches
+        self._held: dict[str, dict | None] = dict.fromkeys(SPLITS)  # radar of the last shape scored
+        self._first: dict[str, tuple | None] = dict.fromkeys(SPLITS)  # (sample, index, row) awaiting the last radar
+        self._swapped = dict.fromkeys(SPLITS, 0)  # shapes that entered the swap stream
 
     def on_validation_epoch_start(self, trainer, pl_module) -> None:
         self._start_epoch("val")
@@ -122,16 +174,35 @@ class ReconstructionEvaluator(L.Callback):
         self._seen[split] = 0
         self._rows[split] = []
         self._saved[split] = []
+        self._counts[split] = {}
+        self._held[split], self._first[split], self._swapped[split] = None, None, 0
+
+    def _diagnosing(self, split: str) -> bool:
+        return split == "test" or self.diagnostics_on_val
+
+    def _score(self, recs: list, batch: dict, index: np.ndarray) -> list[dict]:
+        """Every scorer's scores of ``recs`` against ``batch``'s ground truth, one dict per sample."""
+        rows = [{} for _ in recs]
+        for scorer in self.scorers:
+            for row, scores in zip(rows, scorer.score(recs, batch, index), strict=True):
+                row.update(scores)
+        return rows
+
+    @staticmethod
+    def _reconstruct(pl_module, batch: dict, method: str = "reconstruct") -> list | None:
+        recs = getattr(pl_module, method)(batch)
+        if recs is None:
+            return None
+        recs, size = list(recs), batch_size_of(batch)
+        if len(recs) != size:
+            name = type(pl_module).__name__
+            raise ValueError(f"{name}.{method} returned {len(recs)} reconstructions for a batch of {size}")
+        return recs
 
     def _evaluate(self, trainer, pl_module, batch: dict, split: str, limit: int | None) -> None:
         for scorer in self.scorers:
             scorer.check(batch)
-        size = batch_size_of(batch)
-        recs = list(pl_module.reconstruct(batch))
-        if len(recs) != size:
-            name = type(pl_module).__name__
-            raise ValueError(f"{name}.reconstruct returned {len(recs)} reconstructions for a batch of {size}")
-        recs = recs[:limit]
+        recs = self._reconstruct(pl_module, batch)[:limit]
         n = len(recs)
         labels = _numpy(batch["label"]).reshape(-1)[:n] if "label" in batch else np.zeros(n, dtype=np.int64)
         if "index" in batch:
@@ -139,9 +210,19 @@ class ReconstructionEvaluator(L.Callback):
         else:  # the position in the split under an interleaving distributed sampler
             index = (self._seen[split] + np.arange(n)) * trainer.world_size + trainer.global_rank
         rows = [{"index": int(index[i]), "label": int(labels[i])} for i in range(n)]
+        for row, scores in zip(rows, self._score(recs, batch, index)):
+            row.update(scores)
         for scorer in self.scorers:
-            for row, scores in zip(rows, scorer.score(recs, batch, index), strict=True):
-                row.update(scores)
+            for key, count in scorer.counts(batch).items():
+                self._counts[split][key] = min(count, self._counts[split].get(key, count))
+        if n and self._diagnosing(split):
+            scored = take(batch, slice(0, n))
+            if self.ceiling and callable(getattr(pl_module, "reconstruct_ceiling", None)):
+                ceiling = self._reconstruct(pl_module, scored, "reconstruct_ceiling")
+                for row, scores in zip(rows, self._score(ceiling, scored, index) if ceiling is not None else []):
+                    row.update({CEILING + k: v for k, v in scores.items()})
+            if self.radar_dependence and "radar" in batch:
+                self._swap(pl_module, scored, index, rows, split)
         self._rows[split] += rows
         if self.num_saved > 0:
             gt = _numpy(batch["eval_points"]) if "eval_points" in batch else np.zeros((n, 0, 3))
@@ -149,7 +230,37 @@ class ReconstructionEvaluator(L.Callback):
             self._saved[split] = sorted(saved, key=lambda item: item[0])[: self.num_saved]
         self._seen[split] += n
 
+    def _swap(self, pl_module, scored: dict, index: np.ndarray, rows: list[dict], split: str) -> None:
+        """Score ``scored`` reconstructed from the radar of the shape before each (the derangement)."""
+        n = len(rows)
+        own = {key: scored[key] for key in RADAR_KEYS if key in scored}
+        held, start = self._held[split], 0
+        if held is None:  # the split's first shape waits for the last shape's radar (epoch end)
+            self._first[split] = (take(scored, slice(0, 1)), index[:1], rows[0])
+            previous, start = {key: value[: n - 1] for key, value in own.items()}, 1
+        else:
+            previous = {key: torch.cat([held[key], value[: n - 1]]) for key, value in own.items()}
+        self._held[split] = {key: value[n - 1:] for key, value in own.items()}
+        self._swapped[split] += n
+        if start < n:
+            targets = take(scored, slice(start, n))
+            self._add_dependence(pl_module, targets, previous, index[start:], rows[start:])
+
+    def _add_dependence(self, pl_module, targets: dict, radar: dict, index: np.ndarray, rows: list[dict]) -> None:
+        swapped = self._score(self._reconstruct(pl_module, {**targets, **radar}), targets, index)
+        for row, scores in zip(rows, swapped):
+            row.update({DEPENDENCE + k: row[k] - v for k, v in scores.items() if k in row})
+
+    def _close_swap(self, pl_module, split: str) -> None:
+        """The first shape, reconstructed from the last shape's radar (no pair when it is the only one)."""
+        first, held = self._first[split], self._held[split]
+        if first is not None and held is not None and self._swapped[split] > 1:
+            sample, index, row = first
+            self._add_dependence(pl_module, sample, held, index, [row])
+        self._held[split], self._first[split], self._swapped[split] = None, None, 0
+
     def _finish_epoch(self, trainer, pl_module, split: str) -> None:
+        self._close_swap(pl_module, split)
         # Collective: every rank gathers, also one that scored nothing.
         rows = {}
         for row in (row for rank_rows in _all_gather(trainer, self._rows[split]) for row in rank_rows):
@@ -160,12 +271,23 @@ class ReconstructionEvaluator(L.Callback):
         computed = pool_scores(rows, labels, max(1, len(self._names)), names)
         results = {name: {k: (v.reshape(-1) if k.startswith("class_") else v).tolist() for k, v in values.items()}
                    for name, values in computed.items()}  # torchmetrics squeezes one class to a scalar
-        self.results[split] = results
         for name, values in results.items():
-            self._log(pl_module, f"{split}/{name}", values["mean"], values["std"], values["count"])
+            if name.startswith(DEPENDENCE):
+                values["se"] = standard_error(values["std"], values["count"])
+        counts = {}
+        for rank_counts in _all_gather(trainer, self._counts[split]):
+            for key, count in rank_counts.items():
+                counts[key] = min(count, counts.get(key, count))
+        self.results[split] = results
+        self.counts[split] = {"num_shapes": len(rows), **counts}
+        for name, values in results.items():
+            self._log(pl_module, f"{split}/{name}", values["mean"], values["std"], values["count"], values.get("se"))
             for c, class_name in enumerate(self._names):
                 per_class = (values[f"class_{k}"][c] for k in ("mean", "std", "count"))
                 self._log(pl_module, f"{split}/{class_name}/{name}", *per_class)
+        if rows:
+            for key, count in self.counts[split].items():
+                pl_module.log(f"{split}/{key}", float(count), sync_dist=False)
         saved = [item for rank_items in _all_gather(trainer, self._saved[split]) for item in rank_items]
         directory = self._epoch_dir(trainer, split)  # collective too: trainer.log_dir broadcasts
         if trainer.is_global_zero:
@@ -177,11 +299,14 @@ class ReconstructionEvaluator(L.Callback):
                 self._save(directory, rec, gt_points, index, row)
 
     @staticmethod
-    def _log(pl_module, key: str, mean: float, std: float, count: float) -> None:
+    def _log(pl_module, key: str, mean: float, std: float, count: float, se: float | None = None) -> None:
         # Every rank holds the same pooled values, so there is nothing left to reduce.
         if count > 0:  # nothing scored (e.g. IoU of point-set models): leave it absent, not NaN
             pl_module.log(f"{key}_mean", float(mean), sync_dist=False)
             pl_module.log(f"{key}_std", float(std), sync_dist=False)
+            pl_module.log(f"{key}_count", float(count), sync_dist=False)
+            if se is not None and not math.isnan(se):
+                pl_module.log(f"{key}_se", float(se), sync_dist=False)
 
     def _epoch_dir(self, trainer, split: str) -> Path:
         root = Path(self.save_dir or trainer.log_dir or trainer.default_root_dir)
@@ -193,8 +318,8 @@ class ReconstructionEvaluator(L.Callback):
             return
         path = directory / "scores.csv"
         path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("w", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        with path.open("w", newline="") as handle:  # a shape without a swap partner leaves its cells empty
+            writer = csv.DictWriter(handle, fieldnames=list(dict.fromkeys(k for row in rows for k in row)), restval="")
             writer.writeheader()
             writer.writerows(rows)
 
@@ -207,6 +332,6 @@ class ReconstructionEvaluator(L.Callback):
             rec.mesh.export(stem.with_suffix(".obj"))
         elif rec is not None and rec.mesh is None and len(pred_points):
             trimesh.PointCloud(np.asarray(rec.points).reshape(-1, 3)).export(stem.with_suffix(".ply"))
-        scores = {k: v for k, v in row.items() if k not in ("index", "label")}
+        scores = {k: v for k, v in row.items() if k not in ("index", "label") and not k.startswith((DEPENDENCE, CEILING))}
         title = "  ".join(f"{k} {v:.4g}" for k, v in scores.items())
         save_comparison(stem.with_suffix(".png"), pred_points, gt_points, title=f"#{index}  {title}")

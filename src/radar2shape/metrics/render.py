@@ -47,8 +47,9 @@ def save_comparison(path: str | Path, pred_points: np.ndarray, gt_points: np.nda
     """PNG with the prediction (top row) above the ground truth (bottom row) in each view."""
     from matplotlib.figure import Figure  # object API: no pyplot, no global backend switch
 
+    from radar2shape.atomic import atomic_path
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig = Figure(figsize=(2.6 * len(VIEWS), 5.4))
     axes = fig.subplots(2, len(VIEWS), squeeze=False)
     for row, (label, points) in enumerate((("prediction", pred_points), ("ground truth", gt_points))):
@@ -62,5 +63,6 @@ def save_comparison(path: str | Path, pred_points: np.ndarray, gt_points: np.nda
     if title:
         fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    with atomic_path(path) as temp:
+        fig.savefig(temp, dpi=100)
     return path

@@ -52,6 +52,10 @@ class Scorer:
         if missing:
             raise KeyError(f"{type(self).__name__} needs batch keys {list(self.required_keys)}; missing {missing}")
 
+    def counts(self, batch: dict) -> dict[str, int]:
+        """Sampling sizes behind this batch's scores (logged, so a report can state them); default none."""
+        return {}
+
     def score(self, recs: Sequence, batch: dict, index: np.ndarray) -> list[dict[str, float]]:
         """One dict of scores per reconstruction (``recs`` may be the first samples of the batch only).
 
@@ -77,6 +81,12 @@ class ShapeScorer(Scorer):
     def __init__(self, num_points: int | None = None, tau: float = FSCORE_TAU, seed: int = 0):
         self.num_points = None if num_points is None else int(num_points)
         self.tau, self.seed = float(tau), int(seed)
+
+    def counts(self, batch):
+        """Truth's surface samples, samples per prediction (Chamfer, F-score) and occupancy points (IoU: all of them)."""
+        truth = int(batch["eval_points"].shape[1])
+        return {"num_eval_points": truth, "num_pred_points": self.num_points or truth,
+                "num_occ_points": int(batch["occ_points"].shape[1])}
 
     def score(self, recs, batch, index):
         gt_points, occ_points, gt_inside = (_numpy(batch[key]) for key in self.required_keys)

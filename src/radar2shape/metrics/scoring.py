@@ -28,7 +28,7 @@ from radar2shape.metrics.functional import (
     metric_names,
     surface_distances,
 )
-from radar2shape.models.base import Reconstruction
+from radar2shape.reconstruction import Reconstruction
 
 
 def _usable_mesh(mesh: trimesh.Trimesh) -> bool:

@@ -10,15 +10,13 @@ metric never knows which model it scores.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import lightning as L
-import numpy as np
 import torch
-import trimesh
 
 from radar2shape.errors import UserInputError
+from radar2shape.reconstruction import Reconstruction  # noqa: F401  (re-exported: the models' return type)
 
 if TYPE_CHECKING:
     from radar2shape.radar.spec import RadarSpec
@@ -39,26 +37,6 @@ def check_hparam_names(hparams: dict, source: str) -> None:
         raise UserInputError(f"{source}: saved with retired hyperparameter names {', '.join(old)}; retrain the model")
 
 
-@dataclass
-class Reconstruction:
-    """A predicted shape in normalised coordinates (unit cube [-0.5, 0.5]^3).
-
-    Exactly what the model produces: a surface mesh, or a point set for point-cloud models;
-    ``profile`` is the (r, z) outline of roll-symmetric predictions (None otherwise).
-    """
-
-    mesh: trimesh.Trimesh | None = None
-    points: np.ndarray | None = None
-    profile: np.ndarray | None = None
-
-    @property
-    def is_empty(self) -> bool:
-        """True when there is nothing to score (no faces and no points)."""
-        has_mesh = self.mesh is not None and len(self.mesh.faces) > 0
-        has_points = self.points is not None and len(self.points) > 0
-        return not (has_mesh or has_points)
-
-
 def batch_size_of(batch: dict) -> int:
     """Number of samples in a batch: the leading size of its first tensor."""
     for value in batch.values():
@@ -72,7 +50,8 @@ class ReconstructionModel(L.LightningModule):
 
     Subclasses implement :meth:`losses` (a dict with the total under ``"loss"``; empty for
     models that train nothing) and :meth:`reconstruct`. Optional hooks:
-    :meth:`eval_losses` (deterministic losses for validation/test) and
+    :meth:`eval_losses` (deterministic losses for validation/test),
+    :meth:`reconstruct_ceiling` (latent models: the first stage's bound on any reconstruction) and
     :meth:`check_radar_spec` (refuse a DataModule whose radar does not fit the network).
 
     Hyperparameters read here, with defaults for models that do not declare them: ``lr``,
@@ -95,6 +74,15 @@ class ReconstructionModel(L.LightningModule):
     def reconstruct(self, batch: dict) -> list[Reconstruction]:
         """Return one :class:`Reconstruction` per sample of ``batch`` (same order)."""
         raise NotImplementedError(f"{type(self).__name__} must implement reconstruct(batch)")
+
+    def reconstruct_ceiling(self, batch: dict) -> list[Reconstruction] | None:
+        """The best this model's decoder can do for the batch's shapes, or None (default: no such bound).
+
+        Latent models return their first stage's reconstruction of the true shapes (posterior means
+        decoded): no sample of the second stage can score above it, so the evaluator reports it
+        beside the model's own scores (docs/metrics.md, "Stage-1 ceiling").
+        """
+        return None
 
     def check_radar_spec(self, spec: RadarSpec) -> None:
         """Raise UserInputError when ``spec`` does not fit this network (default: accept)."""

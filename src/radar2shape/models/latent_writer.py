@@ -13,11 +13,12 @@ each rank writes ``<stem>_rank<r><suffix>`` (merge by index).
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import torch
 from lightning.pytorch.callbacks import BasePredictionWriter
+
+from radar2shape.atomic import atomic_open
 
 LATENT_KEYS = ("mu", "logvar", "index")
 
@@ -50,7 +51,5 @@ class LatentWriter(BasePredictionWriter):
         if missing:
             raise KeyError(f"LatentWriter needs predict_step outputs with keys {list(LATENT_KEYS)}; missing {missing}")
         path = self._path(trainer)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        torch.save(merge_latents(batches), tmp)
-        os.replace(tmp, path)  # atomic: a reader never sees half a file
+        with atomic_open(path, "wb") as handle:  # a reader never sees half a file
+            torch.save(merge_latents(batches), handle)

@@ -337,6 +337,18 @@ class RadarDiffusion(ReconstructionModel):
         return out
 
     @torch.no_grad()
+    def reconstruct_ceiling(self, batch: dict) -> list[Reconstruction] | None:
+        """Stage 1's posterior means of the true shapes, meshed as :meth:`reconstruct` meshes samples.
+
+        A Stage-2 sample is decoded by the same frozen decoder, so this bounds what Stage 2 can
+        reach on these shapes; None when the batch has no ``surface_points``.
+        """
+        if "surface_points" not in batch:
+            return None
+        mu, _ = self.stage1.encode(batch["surface_points"].to(self.device))
+        return [Reconstruction(mesh=self.mean_mesh(h[None])[0]) for h in mu]
+
+    @torch.no_grad()
     def reconstruct(self, batch: dict) -> list[Reconstruction]:
         """Sample ``num_samples`` latents per input (DDIM by default), decode, marching cubes (mean SDF when K > 1)."""
         return [recon for recon, _ in self.reconstruct_with_uncertainty(batch)]

@@ -1,19 +1,18 @@
 """The response file: one .npz with ``response`` complex64 [A, R, F] and its three axes.
 
-Writes are atomic (temporary file in the target folder, then ``os.replace``) so a reader never
-sees half a file; reads check every field and say which one is wrong.
+Writes are atomic (``radar2shape.atomic``: temporary file in the target folder, then a rename) so
+a reader never sees half a file; reads check every field and say which one is wrong.
 """
 
 from __future__ import annotations
 
-import os
-import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from radar2shape.atomic import atomic_open
 from radar2shape.errors import UserInputError
 
 AXES = ("aspect_rad", "roll_rad", "freq_hz")
@@ -35,6 +34,9 @@ def _validated(name: str, response, aspect_rad, roll_rad, freq_hz) -> tuple[np.n
     axes = [np.asarray(a) for a in (aspect_rad, roll_rad, freq_hz)]
     if not np.iscomplexobj(response) or response.ndim != 3:
         raise UserInputError(f"{name}: 'response' must be complex [A, R, F], got {response.dtype} {response.shape}")
+    if 0 in response.shape:
+        raise UserInputError(f"{name}: 'response' has an empty axis, shape {response.shape} "
+                             "(expected at least one aspect, roll and frequency)")
     for field, axis, size in zip(AXES, axes, response.shape):
         if axis.ndim != 1 or len(axis) != size or not np.issubdtype(axis.dtype, np.number):
             raise UserInputError(f"{name}: '{field}' must be a 1-D array of {size} numbers "
@@ -52,15 +54,8 @@ def save_response(path: str | Path, response, aspect_rad, roll_rad, freq_hz, siz
     arrays = dict(zip(("response",) + AXES, _validated(str(path), response, aspect_rad, roll_rad, freq_hz)))
     if size_m is not None:
         arrays["size_m"] = np.float64(size_m)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            np.savez(handle, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_open(path, "wb") as handle:
+        np.savez(handle, **arrays)
     return path
 
 

@@ -242,6 +242,9 @@ def read_npz(path: str | Path) -> Measurement:
     has_roll = "roll_rad" in fields
     if value.ndim != (3 if has_roll else 2):
         raise UserInputError(f"{path}: '{value_name}' must be [A, R, F] with roll_rad or [A, F] without, got {value.shape}")
+    if 0 in value.shape:
+        raise UserInputError(f"{path}: '{value_name}' has an empty axis, shape {value.shape} "
+                             "(expected at least one aspect, roll and frequency)")
     if (value_name == "response") != np.iscomplexobj(value):
         raise UserInputError(f"{path}: 'response' must be complex and 'rcs_dbsm' real, got {value_name} {value.dtype}")
     if not has_roll:

@@ -11,6 +11,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from radar2shape.atomic import atomic_path
 from radar2shape.radar.signal import to_db
 
 
@@ -38,6 +39,6 @@ def plot_response(path: str | Path, response: np.ndarray, aspect_rad, roll_rad, 
     if title:
         fig.suptitle(title)
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
+    with atomic_path(path) as temp:  # the format follows the suffix, which the temp name keeps
+        fig.savefig(temp, dpi=100)
     return path
