@@ -39,12 +39,16 @@ class AtomicSaveConfigCallback(SaveConfigCallback):
     """Writes the run's ``config.yaml`` through :mod:`radar2shape.atomic`: complete or absent."""
 
     def setup(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
-        if self.already_saved or not self.save_to_log_dir or not trainer.is_global_zero:
+        if self.already_saved or not self.save_to_log_dir:
+            return super().setup(trainer, pl_module, stage)
+        # ``trainer.log_dir`` is a collective call under DDP: every rank asks, or rank 0 waits forever.
+        log_dir = trainer.log_dir
+        if not trainer.is_global_zero:
             return super().setup(trainer, pl_module, stage)
         from radar2shape.atomic import atomic_path
 
         final = self.config_filename
-        with atomic_path(os.path.join(trainer.log_dir, final)) as temp:
+        with atomic_path(os.path.join(log_dir, final)) as temp:
             self.config_filename = temp.name  # the parent writes here; the rename happens on success
             try:
                 super().setup(trainer, pl_module, stage)

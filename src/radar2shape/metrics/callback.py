@@ -89,9 +89,9 @@ class ReconstructionEvaluator(L.Callback):
         save_dir: where files go; default the trainer's log dir.
         radar_dependence: also reconstruct every scored shape from another shape's radar and
             log own minus swapped per metric (``radar_dependence_<metric>``). The pairing is a
-            fixed derangement of the split in loader order: each shape gets the radar and radar
-            mask of the shape scored before it, the first shape that of the last (on each
-            process), whatever the batch size; a split of one shape has no dependence.
+            fixed derangement of the scored shapes in record-index order: each shape gets the
+            radar and radar mask of the shape before it, the first that of the last, whatever
+            the batch size and the number of processes; a split of one shape has none.
         ceiling: score ``pl_module.reconstruct_ceiling(batch)`` as ``ceiling_<metric>`` when
             the model has the hook and it returns reconstructions (latent models: Stage 1's
             posterior means decoded).
@@ -140,9 +140,8 @@ class ReconstructionEvaluator(L.Callback):
         self._rows: dict[str, list[dict]] = {s: [] for s in SPLITS}
         self._saved: dict[str, list[tuple]] = {s: [] for s in SPLITS}  # (index, rec, gt points, row)
         self._counts: dict[str, dict[str, int]] = {s: {} for s in SPLITS}  # sampling sizes, min over batches
-        self._held: dict[str, dict | None] = dict.fromkeys(SPLITS)  # radar of the last shape scored
-        self._first: dict[str, tuple | None] = dict.fromkeys(SPLITS)  # (sample, index, row) awaiting the last radar
-        self._swapped = dict.fromkeys(SPLITS, 0)  # shapes that entered the swap stream
+        self._pending: dict[str, list] = {s: [] for s in SPLITS}  # (samples, index, rows) awaiting their swap
+        self._radars: dict[str, dict] = {s: {} for s in SPLITS}  # record index -> its radar keys (CPU)
 
     def on_validation_epoch_start(self, trainer, pl_module) -> None:
         self._start_epoch("val")
@@ -175,7 +174,7 @@ class ReconstructionEvaluator(L.Callback):
         self._rows[split] = []
         self._saved[split] = []
         self._counts[split] = {}
-        self._held[split], self._first[split], self._swapped[split] = None, None, 0
+        self._pending[split], self._radars[split] = [], {}
 
     def _diagnosing(self, split: str) -> bool:
         return split == "test" or self.diagnostics_on_val
@@ -231,36 +230,40 @@ class ReconstructionEvaluator(L.Callback):
         self._seen[split] += n
 
     def _swap(self, pl_module, scored: dict, index: np.ndarray, rows: list[dict], split: str) -> None:
-        """Score ``scored`` reconstructed from the radar of the shape before each (the derangement)."""
-        n = len(rows)
-        own = {key: scored[key] for key in RADAR_KEYS if key in scored}
-        held, start = self._held[split], 0
-        if held is None:  # the split's first shape waits for the last shape's radar (epoch end)
-            self._first[split] = (take(scored, slice(0, 1)), index[:1], rows[0])
-            previous, start = {key: value[: n - 1] for key, value in own.items()}, 1
-        else:
-            previous = {key: torch.cat([held[key], value[: n - 1]]) for key, value in own.items()}
-        self._held[split] = {key: value[n - 1:] for key, value in own.items()}
-        self._swapped[split] += n
-        if start < n:
-            targets = take(scored, slice(start, n))
-            self._add_dependence(pl_module, targets, previous, index[start:], rows[start:])
+        """Keep the samples and their radar: the swap needs every process's radars (epoch end)."""
+        cpu = {key: value.detach().cpu() if isinstance(value, torch.Tensor) else value for key, value in scored.items()}
+        self._pending[split].append((cpu, index, rows))
+        for k, i in enumerate(index):
+            self._radars[split][int(i)] = {key: cpu[key][k] for key in RADAR_KEYS if key in cpu}
 
     def _add_dependence(self, pl_module, targets: dict, radar: dict, index: np.ndarray, rows: list[dict]) -> None:
         swapped = self._score(self._reconstruct(pl_module, {**targets, **radar}), targets, index)
         for row, scores in zip(rows, swapped):
             row.update({DEPENDENCE + k: row[k] - v for k, v in scores.items() if k in row})
 
-    def _close_swap(self, pl_module, split: str) -> None:
-        """The first shape, reconstructed from the last shape's radar (no pair when it is the only one)."""
-        first, held = self._first[split], self._held[split]
-        if first is not None and held is not None and self._swapped[split] > 1:
-            sample, index, row = first
-            self._add_dependence(pl_module, sample, held, index, [row])
-        self._held[split], self._first[split], self._swapped[split] = None, None, 0
+    def _resolve_swaps(self, trainer, pl_module, split: str) -> None:
+        """Reconstruct each kept sample from the radar of the shape before it in record-index order
+        (the first from the last): a fixed derangement of the split, the same on any number of
+        processes. Collective: every rank gathers the radars, also one that scored nothing."""
+        if not (self.radar_dependence and self._diagnosing(split)):
+            return
+        pool = {}
+        for radars in _all_gather(trainer, self._radars[split]):
+            pool.update(radars)
+        pending, self._pending[split], self._radars[split] = self._pending[split], [], {}
+        order = sorted(pool)
+        if len(order) < 2:  # one shape has no other radar to swap in
+            return
+        partner = {i: order[k - 1] for k, i in enumerate(order)}
+        device = pl_module.device
+        for samples, index, rows in pending:
+            targets = {k: v.to(device) if isinstance(v, torch.Tensor) else v for k, v in samples.items()}
+            radar = {key: torch.stack([pool[partner[int(i)]][key] for i in index]).to(device)
+                     for key in RADAR_KEYS if key in targets}
+            self._add_dependence(pl_module, targets, radar, index, rows)
 
     def _finish_epoch(self, trainer, pl_module, split: str) -> None:
-        self._close_swap(pl_module, split)
+        self._resolve_swaps(trainer, pl_module, split)
         # Collective: every rank gathers, also one that scored nothing.
         rows = {}
         for row in (row for rank_rows in _all_gather(trainer, self._rows[split]) for row in rank_rows):
