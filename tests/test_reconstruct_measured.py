@@ -125,7 +125,7 @@ def test_bad_measured_files_give_one_line_errors(checkpoint, tmp_path, capsys, t
     assert err.startswith(f"error: {path}") and message in err and "\n" not in err
 
 
-DEMO_CKPT = Path(os.environ.get("RADAR2SHAPE_DEMO_CKPT", ROOT / "runs/demo/stage2/version_0/checkpoints/last.ckpt"))
+DEMO_CKPT = Path(os.environ.get("RADAR2SHAPE_DEMO_CKPT", ROOT / "runs/demo/stage2/fit/version_0/checkpoints/last.ckpt"))
 
 
 @pytest.mark.slow
