@@ -99,13 +99,13 @@ class ShapeScorer(Scorer):
 
 
 def _radar_grid(trainer, pl_module) -> dict | None:
-    """The radar grid IoU-R simulates on: the DataModule's spec, the model's, or the dataset manifest."""
+    """The radar grid IoU-R simulates on: the DataModule's radar spec, else the model's."""
     datamodule = getattr(trainer, "datamodule", None)
     for spec in (getattr(datamodule, "radar_spec", None), getattr(pl_module, "radar_spec", None)):
         if spec is not None:
             grid = spec.grid
             return {"aspect_rad": grid.aspect_rad, "freq_hz": grid.freq_hz, "size_m": grid.size_m}
-    return (getattr(datamodule, "manifest", None) or {}).get("radar")
+    return None
 
 
 class ProfileScorer(Scorer):
@@ -117,7 +117,7 @@ class ProfileScorer(Scorer):
 
     Args:
         radar: grid for IoU-R (``aspect_rad``, ``freq_hz``, ``size_m``); default the DataModule's
-            radar spec (or its manifest's ``radar``). ``radar_iou=False`` skips IoU-R (it
+            radar spec, else the model's. ``radar_iou=False`` skips IoU-R (it
             simulates every prediction).
         level_db, cell, extent, match_points, segments: the metric definitions' parameters.
     """
