@@ -79,7 +79,7 @@ class RecordDataset(Dataset):
     """
 
     def __init__(self, records: RecordSet, labels: list[int], transform: RadarTransform, points: dict[str, int],
-                 train: bool, seed: int = 0):
+                 train: bool, seed: int = 0, cache: bool = False):
         unknown = sorted(set(points) - set(POINT_KEYS))
         if unknown:
             raise ValueError(f"points: unknown subset(s) {unknown}; expected some of {sorted(POINT_KEYS)}")
@@ -87,6 +87,16 @@ class RecordDataset(Dataset):
         self.points = {name: int(n) for name, n in points.items() if n}
         self.train, self.seed = train, seed
         self.keys = ["radar"] + [key for name in self.points for key in POINT_KEYS[name]] + self.extra_keys()
+        self.cache: dict[int, dict] | None = {} if cache else None
+
+    def read(self, index: int) -> dict:
+        """The record's arrays for :attr:`keys`; kept in memory after the first read when caching
+        (opening an ``.npz`` costs more than a small model's training step on it)."""
+        if self.cache is None:
+            return read_record(self.records.path(index), self.keys)
+        if index not in self.cache:
+            self.cache[index] = read_record(self.records.path(index), self.keys)
+        return self.cache[index]
 
     def extra_keys(self) -> list[str]:
         return []
@@ -111,7 +121,7 @@ class RecordDataset(Dataset):
     def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
         epoch, index = key if isinstance(key, tuple) else (0, key)
         rng = self.rng(epoch, index)
-        record = read_record(self.records.path(index), self.keys)
+        record = self.read(index)
         radar, mask = self.radar(record["radar"], rng, index)
         item = {"radar": radar, "radar_mask": mask,
                 "label": np.int64(self.labels[index]), "index": np.int64(index)}

@@ -1,6 +1,9 @@
 """Report tables: values, ± formatting, best-in-bold by direction, and CSV round trip."""
 
 import csv
+from pathlib import Path
+
+import pytest
 
 from radar2shape.reporting import Column, markdown_table, read_logged_metrics, write_csv
 
@@ -52,3 +55,21 @@ def test_layout_maps_run_names_onto_sections_rows_and_groups():
     assert rows == [("Model A", {"full/iou_mean": 0.1, "partial/iou_mean": 0.3}), ("b", {"full/iou_mean": 0.2})]
     assert high_rows == [("Model A", {"full/iou_mean": 0.4})] and len(high_columns) == 2
     assert layout.split("stage1") is None and layout.split("a-full-sbr-x") == {"row": "a", "group": "full", "section": "sbr-x"}
+
+
+def test_seed_replicates_merge_into_one_row():
+    """``-seed<k>`` runs share a row: mean of the seed means, their std (ddof 1) beside the mean over-shapes std."""
+    from radar2shape.reporting import Cell, Column, Layout, markdown_table, merge_seeds
+
+    merged = merge_seeds([{"iou_mean": 0.5, "iou_std": 0.1, "dep_se": 0.03, "iou_count": 20.0},
+                          {"iou_mean": 0.7, "iou_std": 0.3, "dep_se": 0.04, "iou_count": 19.0}])
+    assert merged["iou_mean"] == pytest.approx(0.6) and merged["iou_seeds_std"] == pytest.approx(0.02 ** 0.5)  # sqrt((0.1^2 + 0.1^2) / 1)
+    assert merged["iou_std"] == pytest.approx(0.2) and merged["dep_se"] == pytest.approx(0.025)  # sqrt(.03^2+.04^2)/2
+    assert merged["iou_count"] == 19.0 and merged["iou_seeds"] == 2.0
+    layout = Layout("t", (Column("iou", "IoU", True),), lambda *a: None, ("row", "group"))
+    cells = [Cell(f"m-full-seed{k}", Path(), "done", {}, {"iou_mean": v, "iou_std": 0.1}) for k, v in enumerate((0.4, 0.6, 0.8))]
+    cells.append(Cell("n-full", Path(), "done", {}, {"iou_mean": 0.3, "iou_std": 0.05}))
+    (section, rows, columns), = layout.tables(cells)
+    assert [name for name, _ in rows] == ["m", "n"]
+    text = markdown_table(rows, columns)
+    assert "| m | **0.600 ± 0.100** (seeds ± 0.200) |" in text and "| n | 0.300 ± 0.050 |" in text

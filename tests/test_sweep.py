@@ -220,6 +220,9 @@ def test_prepare_threads_and_report_keys(tmp_path):
         sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], prepare="build-data"))
     with pytest.raises(UserInputError, match="threads"):
         sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], threads=0))
+    with pytest.raises(UserInputError, match="key 'jobs': expected a positive integer, got 0"):
+        sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], jobs=0))
+    assert sweep.load_grid(write_grid(tmp_path, runs=[{"name": "a"}], jobs=2)).jobs == 2
 
 
 def test_rollsym_table_reads_finished_runs(tmp_path):
@@ -267,3 +270,28 @@ def test_sigkill_mid_sweep_then_rerun(tmp_path):
     assert "h8: done, skipped" in result.stdout
     assert done.stat().st_mtime_ns == finished
     assert (tmp_path / "runs" / "h16" / "done").is_file()
+
+
+@pytest.mark.slow
+def test_parallel_jobs_respect_dependencies_and_match_serial(tmp_path):
+    """``--jobs 2``: each run in its own process, ``b`` only after ``a`` (it tests a's checkpoint);
+    the scores equal a serial sweep's (same seeds, one thread each)."""
+    grid_path = chained_grid(tmp_path)
+    assert run_sweep([str(grid_path), "--jobs", "2"]) == 0
+    runs = tmp_path / "runs"
+    parallel = {n: json.loads((runs / n / "metrics.json").read_text())["radius_l1"] for n in ("a", "ref", "b")}
+    assert parallel["b"] == parallel["a"] != parallel["ref"]
+    assert all((runs / f"{n}.log").is_file() for n in ("a", "ref", "b"))
+    # b's test started after a's done marker was written
+    assert (runs / "b" / "run.yaml").stat().st_mtime >= (runs / "a" / "done").stat().st_mtime
+    # a rerun skips everything; a serial rerun from scratch gives the same numbers
+    assert run_sweep([str(grid_path), "--jobs", "2"]) == 0
+    (tmp_path / "serial").mkdir()
+    serial_path = write_grid(tmp_path / "serial", **{k: v for k, v in yaml.safe_load(grid_path.read_text()).items()
+                                                     if k != "out_dir"})
+    spec = yaml.safe_load(serial_path.read_text())
+    spec["runs"][2]["overrides"]["ckpt_path"] = spec["runs"][2]["overrides"]["ckpt_path"].replace(str(runs), spec["out_dir"])
+    serial_path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    assert run_sweep([str(serial_path)]) == 0
+    serial = {n: json.loads((Path(spec["out_dir"]) / n / "metrics.json").read_text())["radius_l1"] for n in ("a", "ref", "b")}
+    assert serial == pytest.approx(parallel, rel=1e-5)

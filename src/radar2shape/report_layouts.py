@@ -401,13 +401,29 @@ def noise_title(noise: str) -> str:
     return f"{noise.capitalize()} noise ({level} dB)" if level is not None else noise
 
 
+def noise_level(cells: list[Cell], section: str) -> str:
+    """A section's title from its runs' saved test configs ("Low noise (-60 dB re peak)"), else
+    :func:`noise_title` of its name; "levels differ" when the runs disagree."""
+    name = section.split("-seed")[0]
+    found = set()
+    for cell in cells:
+        parts = re.sub(r"-seed\d+$", "", cell.name).split("-")
+        config = test_config(cell.run_dir) if len(parts) == 3 and parts[2] == name and cell.run_dir != Path() else None
+        if config is not None and "test_noise_db" in config:
+            reference = " re peak" if config.get("noise_reference") == "peak" else " dBsm" if config.get("noise_reference") == "absolute" else ""
+            found.add(f"{float(config['test_noise_db']):g} dB{reference}".replace("dB dBsm", "dBsm"))
+    if len(found) == 1:
+        return f"{name.capitalize()} noise ({found.pop()})"
+    return noise_title(name) if not found else f"{name.capitalize()} noise (levels differ: {', '.join(sorted(found))})"
+
+
 def write_rollsym(grid, out: Path, layout: Layout, shapes: int) -> Path:
     """``table.md`` / ``table.csv`` / ``diagnostics.csv``: one table and one diagnostics table per noise
     level (CSV rows ``<noise>/<model>``), and the per-shape scores ``scores/<run>.csv``."""
     cells, _ = collect_cells(grid)
     tables = layout.tables(cells)
     diagnostics = layout.tables(cells, layout.diagnostics)
-    sections = [f"### {layout.section_title(s)}\n\n{markdown_table(rows, columns)}\n\n"
+    sections = [f"### {noise_level(cells, s)}\n\n{markdown_table(rows, columns)}\n\n"
                 f"Diagnostics:\n\n{markdown_table(diag_rows, diag_columns)}"
                 for (s, rows, columns), (_, diag_rows, diag_columns) in zip(tables, diagnostics)]
     copied = copy_scores(cells, out / "scores")

@@ -13,6 +13,7 @@ import contextlib
 import csv
 import json
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -53,11 +54,47 @@ def read_logged_metrics(metrics_csv: str | Path, prefix: str = "test/") -> dict[
     return values
 
 
-def _cell(mean: float | None, std: float | None, digits: int, bold: bool) -> str:
+def _cell(mean: float | None, std: float | None, digits: int, bold: bool, seeds_std: float | None = None) -> str:
     if mean is None or math.isnan(mean):
         return "n/a"
     text = f"{mean:.{digits}f}" if std is None else f"{mean:.{digits}f} ± {std:.{digits}f}"
-    return f"**{text}**" if bold else text
+    text = f"**{text}**" if bold else text
+    return text if seeds_std is None else f"{text} (seeds ± {seeds_std:.{digits}f})"
+
+
+# ---- seed replicates -------------------------------------------------------------------------------
+SEED_SUFFIX = re.compile(r"-seed(\d+)$")  # ``radar2shape-full-seed1``: replicate 1 of ``radar2shape-full``
+
+
+def merge_seeds(replicates: list[dict[str, float]]) -> dict[str, float]:
+    """One metrics dict from the same run trained with several seeds.
+
+    ``<k>_mean``: mean over seeds, with ``<k>_seeds_std`` (std of the seed means, ddof 1) and
+    ``<k>_seeds`` (how many); ``<k>_std`` (over shapes): the mean over seeds; ``<k>_se`` (standard
+    error of a mean): that of the mean of the seed means, sqrt(sum se^2) / n; counts and totals: the
+    smallest over seeds (every seed scores the same shapes). A single replicate is returned as is.
+    """
+    if len(replicates) == 1:
+        return dict(replicates[0])
+    merged: dict[str, float] = {}
+    for key in {k for r in replicates for k in r}:
+        values = [r[key] for r in replicates if key in r and not math.isnan(r[key])]
+        if not values:
+            merged[key] = math.nan
+        elif key.endswith("_mean"):
+            mean = sum(values) / len(values)
+            merged[key] = mean
+            base = key[: -len("_mean")]
+            merged[f"{base}_seeds"] = float(len(values))
+            if len(values) > 1:
+                merged[f"{base}_seeds_std"] = math.sqrt(sum((v - mean) ** 2 for v in values) / (len(values) - 1))
+        elif key.endswith("_se"):
+            merged[key] = math.sqrt(sum(v * v for v in values)) / len(values)
+        elif key.endswith("_std"):
+            merged[key] = sum(values) / len(values)
+        else:
+            merged[key] = min(values)
+    return merged
 
 
 def markdown_table(rows: list[tuple[str, dict[str, float]]], columns: list[Column]) -> str:
@@ -76,7 +113,7 @@ def markdown_table(rows: list[tuple[str, dict[str, float]]], columns: list[Colum
                 cells.append("n/a" if mean is None or std is None else f"{mean:.0f} of {std:.0f}")
                 continue
             bold = mean is not None and column.key in best and mean == best[column.key]
-            cells.append(_cell(mean, std, column.digits, bold))
+            cells.append(_cell(mean, std, column.digits, bold, metrics.get(f"{column.key}_seeds_std")))
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -85,11 +122,13 @@ def write_csv(rows: list[tuple[str, dict[str, float]]], columns: list[Column], p
     """The same table as CSV (mean and spread, or count and total, in separate columns), written atomically."""
     path = Path(path)
     tmp = path.with_suffix(path.suffix + ".tmp")
+    seeded = any(f"{c.key}_seeds_std" in m for _, m in rows for c in columns)
+    keys = [key for c in columns for key in c.fields() + ((f"{c.key}_seeds_std", f"{c.key}_seeds") if seeded and not c.total else ())]
     with tmp.open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(["model"] + [key for c in columns for key in c.fields()])
+        writer.writerow(["model"] + keys)
         for name, metrics in rows:
-            writer.writerow([name] + [metrics.get(key, "") for c in columns for key in c.fields()])
+            writer.writerow([name] + [metrics.get(key, "") for key in keys])
     tmp.replace(path)
 
 
@@ -166,6 +205,8 @@ class Layout:
     (a column group) and ``section`` (one table each); the last part takes the rest of the name
     (``radar2shape-full-sbr`` with ``("row", "group")`` is row ``radar2shape``, group ``full-sbr``).
     A name with fewer parts is an auxiliary run (e.g. a Stage-1 VAE): listed with its wall time only.
+    A trailing ``-seed<k>`` marks a seed replicate: replicates of one name share a table row
+    (:func:`merge_seeds`: mean over seeds, the spread over seeds beside the spread over shapes).
     """
 
     name: str
@@ -180,7 +221,7 @@ class Layout:
 
     def split(self, run_name: str) -> dict[str, str] | None:
         """``{"row": ..., "group": ..., ...}`` of a run name, or None for an auxiliary run."""
-        values = run_name.split("-", len(self.parts) - 1)
+        values = SEED_SUFFIX.sub("", run_name).split("-", len(self.parts) - 1)
         return dict(zip(self.parts, values)) if len(values) == len(self.parts) else None
 
     def row_title(self, row: str) -> str:
@@ -197,7 +238,7 @@ class Layout:
         metrics keyed ``<group>/<metric>_mean|_std`` (``<metric>_...`` in a layout without groups).
         ``columns``: default the layout's main columns (``self.diagnostics`` for the second table)."""
         chosen = self.columns if columns is None else columns
-        sections: dict[str | None, dict] = {}
+        sections: dict[str | None, dict] = {}  # section -> row -> {(group, seed): metrics}
         groups: dict[str | None, list[str]] = {}
         members: dict[str | None, list[Cell]] = {}
         for cell in cells:
@@ -209,9 +250,12 @@ class Layout:
             row = rows.setdefault(where["row"], {})
             section_groups = groups.setdefault(section, [])
             section_groups += [group] if group not in section_groups else []
-            prefix = f"{group}/" if group is not None else ""
-            row.update({f"{prefix}{key}": value for key, value in cell.metrics.items()})
+            row.setdefault(group, []).append(cell.metrics)
             members.setdefault(group, []).append(cell)
+        for section, rows in sections.items():  # seed replicates -> one metrics dict per row
+            for name, by_group in rows.items():
+                rows[name] = {f"{group}/{key}" if group is not None else key: value
+                              for group, replicates in by_group.items() for key, value in merge_seeds(replicates).items()}
         out = []
         for section, rows in sections.items():
             columns = [replace(c, key=f"{g}/{c.key}", header=f"{self.group_title(g, members[g])}: {c.header}",

@@ -22,6 +22,7 @@ Grid file (YAML, schema :class:`GridSpec`)::
     overrides: {trainer.max_epochs: 5} # --key=value for every run
     test: true                         # run `test` on the last checkpoint of fit runs (default true)
     threads: 1                         # optional: torch CPU threads (a busy machine runs faster with 1)
+    jobs: 2                            # optional: runs at once, each in its own process (default 1)
     prepare:                           # optional: radar2shape commands run first, every time
       - [build-data, --config, conf/data/x.yaml, --out, data/x]   #   (so they must resume cheaply)
     report: table1                     # optional: report layout (radar2shape.report_layouts) written
@@ -89,6 +90,7 @@ class GridSpec:
     overrides: dict[str, Any] = field(default_factory=dict)
     test: bool = True
     threads: Optional[int] = None
+    jobs: int = 1
     prepare: list[list[Any]] = field(default_factory=list)
     report: Optional[str] = None
     matrix: dict[str, dict[str, Any]] = field(default_factory=dict)
@@ -122,6 +124,7 @@ class Grid:
     prepare: list[list[str]] = field(default_factory=list)
     report: str | None = None
     threads: int | None = None
+    jobs: int = 1
 
     @property
     def name(self) -> str:
@@ -208,13 +211,15 @@ def load_grid(grid: str | Path) -> Grid:
         raise UserInputError(f"{path}: key 'prepare': each command must be a non-empty list like [build-data, --config, ...]")
     if spec.threads is not None and spec.threads < 1:
         raise UserInputError(f"{path}: key 'threads': expected a positive integer, got {spec.threads}")
+    if spec.jobs < 1:
+        raise UserInputError(f"{path}: key 'jobs': expected a positive integer, got {spec.jobs}")
     if spec.report is not None:
         from radar2shape.report_layouts import LAYOUTS
 
         if spec.report not in LAYOUTS:
             raise UserInputError(f"{path}: key 'report': unknown report layout {spec.report!r} (expected one of {sorted(LAYOUTS)})")
     prepare = [[_format(part) for part in command] for command in spec.prepare]
-    grid = Grid(path, Path(spec.out_dir), runs, spec.test, prepare, spec.report, spec.threads)
+    grid = Grid(path, Path(spec.out_dir), runs, spec.test, prepare, spec.report, spec.threads, spec.jobs)
     for i, run in enumerate(runs):
         earlier = set(names[:i])
         for need in grid.needs(run):
@@ -324,12 +329,17 @@ def run_prepare(grid: Grid) -> None:
         _cli(command[0], command[1:])
 
 
-def run_grid(grid: Grid, only: list[str] | None = None, keep_going: bool = False) -> int:
-    """Run every unfinished run in order; returns the number of runs that failed."""
+def select_runs(grid: Grid, only: list[str] | None) -> list[Run]:
+    """The grid's runs, or those named in ``only`` (an unknown name is an error)."""
     unknown = sorted(set(only or []) - {r.name for r in grid.runs})
     if unknown:
         raise UserInputError(f"{grid.path}: no runs named {unknown}")
-    runs = [r for r in grid.runs if not only or r.name in only]
+    return [r for r in grid.runs if not only or r.name in only]
+
+
+def run_grid(grid: Grid, only: list[str] | None = None, keep_going: bool = False) -> int:
+    """Run every unfinished run in order; returns the number of runs that failed."""
+    runs = select_runs(grid, only)
     failed = 0
     for i, run in enumerate(runs, 1):
         run_dir = grid.run_dir(run)
@@ -357,6 +367,74 @@ def run_grid(grid: Grid, only: list[str] | None = None, keep_going: bool = False
             continue
         print(f"[sweep] {run.name}: finished in {record['wall_seconds']:.1f} s", flush=True)
     return failed
+
+
+def _ready(grid: Grid, run: Run, waiting: set[str]) -> bool:
+    """A run may start once none of its dependencies is still waiting or running."""
+    return not set(grid.needs(run)) & waiting
+
+
+def run_grid_parallel(grid: Grid, runs: list[Run], jobs: int, keep_going: bool, threads: int | None) -> int:
+    """Up to ``jobs`` runs at once, each a child process running exactly one run
+    (:func:`child_main`), started in file order once its dependencies have finished. A child's output
+    goes to ``<out_dir>/<run>.log``; the resume and redo rules are those of :func:`run_grid`.
+    Returns the number of runs that failed."""
+    import subprocess
+
+    todo = []
+    for run in runs:
+        run_dir = grid.run_dir(run)
+        stale = stale_because(grid, run) if is_done(run_dir) else None
+        if is_done(run_dir) and not stale:
+            print(f"[sweep] {run.name}: done, skipped", flush=True)
+        else:
+            todo.append(run)
+    waiting, running, failed = {r.name for r in todo}, {}, 0
+    grid.out_dir.mkdir(parents=True, exist_ok=True)
+    code = ("import sys; from radar2shape.sweep import child_main; "
+            "sys.exit(child_main(sys.argv[1], sys.argv[2], int(sys.argv[3])))")
+    stop = False
+    while (todo and not stop) or running:
+        for run in [r for r in todo if not stop and len(running) < jobs and _ready(grid, r, waiting - {r.name})]:
+            if len(running) >= jobs:
+                break
+            todo.remove(run)
+            missing = [need for need in grid.needs(run) if not is_done(grid.out_dir / need)]
+            if missing:
+                failed += 1
+                waiting.discard(run.name)
+                print(f"[sweep] {run.name}: FAILED: needs {missing}, not done", file=sys.stderr, flush=True)
+                stop = not keep_going
+                continue
+            log = grid.run_dir(run).with_suffix(".log")
+            print(f"[sweep] {run.name}: running in {grid.run_dir(run)} (log {log})", flush=True)
+            with log.open("w") as handle:
+                running[run.name] = subprocess.Popen(
+                    [sys.executable, "-c", code, str(grid.path), run.name, str(threads or 0)],
+                    stdout=handle, stderr=subprocess.STDOUT)
+        time.sleep(0.5)
+        for name, process in list(running.items()):
+            if process.poll() is None:
+                continue
+            del running[name]
+            waiting.discard(name)
+            if process.returncode == 0:
+                print(f"[sweep] {name}: finished", flush=True)
+                continue
+            failed += 1
+            print(f"[sweep] {name}: FAILED (see {grid.out_dir / name / 'failed'})", file=sys.stderr, flush=True)
+            stop = stop or not keep_going
+    return failed
+
+
+def child_main(grid_path: str, name: str, threads: int) -> int:
+    """One run of a parallel sweep, in its own process (1 when it failed: its folder says why)."""
+    grid = load_grid(grid_path)
+    with torch_threads(threads or None):
+        try:
+            return run_grid(grid, [name], keep_going=True)
+        except Exception:  # noqa: BLE001 - run_grid already wrote the traceback to the run's folder
+            return 1
 
 
 def run_report(grid: Grid) -> None:

@@ -203,3 +203,24 @@ def test_peak_noise_option_reaches_the_batches(parts_dataset, frusta_dataset):
 def test_bad_observability_and_noise_options_name_the_option(parts_dataset, option, match):
     with pytest.raises(UserInputError, match=match):
         _module(parts_dataset, **option)
+
+
+def test_cached_records_give_the_same_items_and_read_each_file_once(parts_dataset, tmp_path):
+    """``cache_records``: items equal the uncached ones (masks, noise and point subsets included),
+    and after one pass the files are no longer needed."""
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(parts_dataset, copy)
+    options = dict(observability="partial", train_noise_db=-40.0)
+    plain = _module(parts_dataset, **options).dataset("train")
+    cached = _module(copy, cache_records=True, **options).dataset("train")
+    keys = [(0, i) for i in range(len(plain))]
+    first = [cached[k] for k in keys]
+    shutil.rmtree(copy / "records")  # every later read must come from memory
+    for key, item in zip(keys + [(1, 0), (1, 1)], first + [cached[(1, 0)], cached[(1, 1)]]):
+        reference = plain[key]
+        assert set(item) == set(reference)
+        for name in item:
+            torch.testing.assert_close(item[name], reference[name], rtol=0, atol=0)
+    assert _module(parts_dataset).dataset("train").cache is None  # off by default

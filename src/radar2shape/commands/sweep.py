@@ -10,6 +10,7 @@ import argparse
 import time
 
 from radar2shape import sweep
+from radar2shape.errors import UserInputError
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
@@ -18,6 +19,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--keep-going", action="store_true", help="continue after a failed run")
     parser.add_argument("--list", action="store_true", help="print each run's state and arguments, run nothing")
     parser.add_argument("--threads", type=int, help="torch CPU threads, overriding the grid's 'threads'")
+    parser.add_argument("--jobs", type=int, help="runs at once, each in its own process, overriding the grid's 'jobs'")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -29,10 +31,17 @@ def main(args: argparse.Namespace) -> int:
             print(f"{run.name} [{state}]: {run.command} {' '.join(run.args(run_dir / run.command))}")
         return 0
     sweep.check_out_dir(grid)
+    jobs = args.jobs or grid.jobs
+    if jobs < 1:
+        raise UserInputError(f"--jobs: expected a positive integer, got {jobs}")
     start = time.perf_counter()
     with sweep.torch_threads(args.threads or grid.threads):
         sweep.run_prepare(grid)
-        failed = sweep.run_grid(grid, args.only, args.keep_going)
+        if jobs > 1:
+            failed = sweep.run_grid_parallel(grid, sweep.select_runs(grid, args.only), jobs, args.keep_going,
+                                             args.threads or grid.threads)
+        else:
+            failed = sweep.run_grid(grid, args.only, args.keep_going)
     print(f"[sweep] grid finished in {time.perf_counter() - start:.1f} s, {failed} failed", flush=True)
     if failed:
         return 1
