@@ -30,7 +30,7 @@ __all__ = [
     "scatter_mean",
     "spatial_hash",
 ]
-from radar2shape.nn.diffusion import GaussianDiffusion  # noqa: E402  (Stage 2, issue 7)
+from radar2shape.nn.diffusion import GaussianDiffusion  # noqa: E402  (Stage 2)
 from radar2shape.nn.positional import TimestepEmbedding, sinusoidal_embedding  # noqa: E402
 from radar2shape.nn.radar_encoder import RadarBlockEncoder, ResNetEncoder  # noqa: E402
 from radar2shape.nn.transformer import Transformer, causal_mask  # noqa: E402
