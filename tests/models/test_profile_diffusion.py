@@ -178,3 +178,18 @@ def test_overfits_eight_profiles(batch):
     iou = mean_section_iou(model, batch)
     print(f"profile U-Net overfit: IoU-S {iou:.3f} in {time.perf_counter() - start:.0f} s")
     assert iou >= 0.8
+
+
+def test_guidance_zero_ignores_the_radar_and_condition_dropout_trains(batch):
+    """guidance = 0 samples the unconditional model: two different radars give the same profiles;
+    guidance = 1 (default) reads the radar; cond_drop blanks the radar of some training samples."""
+    model = ProfileUNetDiffusion(**TINY_UNET, guidance=0.0, num_samples=1).eval()
+    other = {**batch, "radar": torch.randn_like(batch["radar"])}
+    torch.testing.assert_close(model.predict_normalised(batch), model.predict_normalised(other))
+    model.hparams.guidance = 1.0
+    assert not torch.allclose(model.predict_normalised(batch), model.predict_normalised(other))
+    dropping = ProfileUNetDiffusion(**TINY_UNET, cond_drop=1.0).train()
+    seen = []
+    dropping.denoise = lambda h_t, t, radar_input: seen.append(radar_input) or torch.zeros_like(h_t)
+    dropping.diffusion_loss(batch)
+    assert not seen[0].any()  # cond_drop = 1: every sample sees "nothing observed"

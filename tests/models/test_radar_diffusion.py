@@ -265,3 +265,21 @@ def test_ceiling_decodes_the_stage1_posterior_means(stage1_ckpt):
         np.testing.assert_allclose(ours.mesh.bounds, theirs.mesh.bounds, atol=1e-5)
         assert len(ours.mesh.faces) == len(theirs.mesh.faces) > 0
     assert model.reconstruct_ceiling(radar_batch(2)) is None  # no surface points: no ceiling
+
+
+def test_guidance_zero_ignores_the_radar_and_fully_masked_radar_has_finite_gradients(stage1_ckpt):
+    model = tiny_model(stage1_ckpt, guidance=0.0).eval()
+    model.standardiser.fit(model.stage1.encode(sphere_batch()["surface_points"])[0])
+    with torch.no_grad():  # zero-initialised output and gates would make any output ignore the radar
+        for param in [*model.transformer.parameters(), *model.latent_out.parameters()]:
+            if not param.any():
+                param.normal_(std=0.3)
+    same = [model.sample_latents(radar_batch(2, seed), steps=4, sample_seed=1) for seed in (0, 1)]
+    torch.testing.assert_close(same[0], same[1])
+    model.hparams.guidance = 2.0
+    assert not torch.allclose(model.sample_latents(radar_batch(2, 0), steps=4, sample_seed=1),
+                              model.sample_latents(radar_batch(2, 1), steps=4, sample_seed=1))
+    blank = radar_batch(2)
+    tokens = model.encode_radar(torch.zeros_like(blank["radar"]).requires_grad_(), torch.zeros_like(blank["radar_mask"]))
+    tokens.sum().backward()
+    assert all(torch.isfinite(p.grad).all() for p in model.radar_encoder.parameters() if p.grad is not None)

@@ -123,3 +123,31 @@ def test_velocity_target_is_what_the_skip_turns_into_the_noise():
     error = torch.randn(6, 3, 5, generator=gen, dtype=torch.float64)
     eps_error = diffusion.skip_eps(x_t, t, v + error) - noise
     torch.testing.assert_close(eps_error.pow(2) / abar, error.pow(2), atol=1e-8, rtol=1e-6)
+
+
+def test_guidance_combines_the_two_predictions_and_scale_one_is_conditional():
+    from radar2shape.nn.diffusion import guided
+
+    calls = []
+    cond = lambda x, t: calls.append("c") or torch.full_like(x, 2.0)  # noqa: E731
+    uncond = lambda x, t: calls.append("u") or torch.full_like(x, 0.5)  # noqa: E731
+    x, t = torch.zeros(3, 2), torch.zeros(3, dtype=torch.long)
+    assert guided(cond, uncond, 1.0) is cond  # no unconditional pass at scale 1
+    torch.testing.assert_close(guided(cond, uncond, 3.0)(x, t), torch.full((3, 2), 0.5 + 3.0 * 1.5))
+    torch.testing.assert_close(guided(cond, uncond, 0.0)(x, t), torch.full((3, 2), 0.5))  # the prior alone
+    assert calls == ["u", "c", "u", "c"]
+
+
+def test_condition_dropout_blanks_whole_samples_at_the_asked_rate():
+    from radar2shape.nn.diffusion import drop_condition
+
+    radar, mask = torch.randn(4000, 3, 5), torch.rand(4000, 3) < 0.8
+    assert drop_condition(radar, mask, 0.0) == (radar, mask)
+    before = radar.clone()
+    dropped, kept = drop_condition(radar, mask, 0.25, torch.Generator().manual_seed(0))
+    blank = (dropped == 0).flatten(1).all(dim=1)  # a Gaussian radar row is never all zero
+    assert 0.22 < blank.float().mean() < 0.28  # 1000 expected of 4000 (std 27)
+    assert not kept[blank].any() and torch.equal(dropped[~blank], radar[~blank]) and torch.equal(kept[~blank], mask[~blank])
+    assert torch.equal(radar, before)  # inputs untouched
+    dropped, kept = drop_condition(radar, mask, 1.0)
+    assert not kept.any() and not dropped.any()

@@ -18,7 +18,7 @@ from torch.nn import functional as F
 from radar2shape.errors import UserInputError
 from radar2shape.geometry.profile import profile_to_mesh, validate_profile
 from radar2shape.models.base import Reconstruction, ReconstructionModel
-from radar2shape.nn.diffusion import GaussianDiffusion
+from radar2shape.nn.diffusion import GaussianDiffusion, drop_condition, guided
 from radar2shape.nn.unet1d import UNet1D
 from radar2shape.radar.spec import RadarSpec
 
@@ -159,6 +159,8 @@ class ProfileUNetDiffusion(ProfileModel):
     ``min_snr_gamma`` weights it by ``min(SNR, gamma) / SNR`` (Hang et al. 2023), which shifts weight
     to the noisy steps where the radar decides the global shape. Sampling: DDPM ancestral over all
     steps, or DDIM with ``sample_steps``; ``num_samples > 1`` averages that many draws.
+    Classifier-free guidance: ``cond_drop`` trains that share of samples on the all-zero "nothing
+    observed" input, and ``guidance`` > 1 samples with ``eps_u + guidance (eps_c - eps_u)``.
     """
 
     def __init__(
@@ -183,6 +185,8 @@ class ProfileUNetDiffusion(ProfileModel):
         lr: float = 1e-3,
         weight_decay: float = 0.0,
         mesh_segments: int = 64,
+        cond_drop: float = 0.0,
+        guidance: float = 1.0,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -202,11 +206,18 @@ class ProfileUNetDiffusion(ProfileModel):
             eps = eps + self.skip(h_t.flatten(1))
         return eps.view_as(h_t)
 
+    def null_input(self, batch_size: int, like: torch.Tensor) -> torch.Tensor:
+        """The "nothing observed" radar input ``[B, F + 1, A]`` (all zero): the unconditional model."""
+        return like.new_zeros(batch_size, self.num_freq + 1, self.num_aspect)
+
     def diffusion_loss(self, batch: dict) -> torch.Tensor:
         x0 = self.target_profiles(batch)
         noise = torch.randn_like(x0)
         t = self.diffusion.sample_timesteps(x0.shape[0], device=x0.device)
-        eps = self.denoise(self.diffusion.q_sample(x0, t, noise), t, self.radar_input(batch))
+        radar_input = self.radar_input(batch)
+        if self.training and self.hparams.get("cond_drop", 0.0) > 0:  # guidance: learn the unconditional too
+            radar_input, _ = drop_condition(radar_input, radar_input[:, -1] > 0.5, self.hparams.cond_drop)
+        eps = self.denoise(self.diffusion.q_sample(x0, t, noise), t, radar_input)
         per_sample = (eps - noise).pow(2).flatten(1).mean(dim=1)
         if self.hparams.min_snr_gamma is not None:  # Hang et al. 2023, for epsilon prediction
             snr = self.diffusion.alphas_bar[t] / (1 - self.diffusion.alphas_bar[t])
@@ -228,8 +239,11 @@ class ProfileUNetDiffusion(ProfileModel):
         b, k = radar_input.shape[0], hp.num_samples
         repeated = radar_input.repeat(k, 1, 1)
         generator = torch.Generator(device=radar_input.device).manual_seed(hp.sample_seed)
+        null = self.null_input(k * b, repeated)
+        eps_fn = guided(lambda x, t: self.denoise(x, t, repeated), lambda x, t: self.denoise(x, t, null),
+                        float(hp.get("guidance", 1.0)))
         samples = self.diffusion.sample(
-            lambda x, t: self.denoise(x, t, repeated), (k * b, self.profile_points, 2), method=hp.sampler,
+            eps_fn, (k * b, self.profile_points, 2), method=hp.sampler,
             steps=hp.sample_steps if hp.sampler == "ddim" else None, generator=generator, device=radar_input.device,
         )
         return samples.view(k, b, self.profile_points, 2).mean(dim=0)

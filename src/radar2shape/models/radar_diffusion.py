@@ -28,7 +28,7 @@ from torch.nn import functional as F
 from radar2shape.errors import UserInputError
 from radar2shape.models.base import Reconstruction, ReconstructionModel
 from radar2shape.models.sdf_vae import SDFVAE
-from radar2shape.nn.diffusion import GaussianDiffusion
+from radar2shape.nn.diffusion import GaussianDiffusion, drop_condition, guided
 from radar2shape.nn.positional import TimestepEmbedding, sinusoidal_embedding
 from radar2shape.nn.radar_encoder import RadarBlockEncoder
 from radar2shape.nn.transformer import Transformer, causal_mask
@@ -108,6 +108,9 @@ class RadarDiffusion(ReconstructionModel):
             ``ddim`` with that many steps and eta, or ``ddpm``).
         mesh_resolution: marching-cubes grid of :meth:`reconstruct`; sample_seed: sampling seed.
         lr, weight_decay: AdamW settings.
+        cond_drop, guidance: classifier-free guidance: that share of training samples sees the
+            "nothing observed" radar (zero, fully masked), and sampling uses
+            ``eps_u + guidance (eps_c - eps_u)`` (1 = plain conditional sampling, no extra cost).
 
     The radar grid and dB normalisation come from the DataModule at fit start
     (:attr:`radar_spec`, stored in the checkpoint); :meth:`check_radar_spec` refuses data whose
@@ -140,6 +143,8 @@ class RadarDiffusion(ReconstructionModel):
         sample_seed: int = 0,
         lr: float = 1e-4,
         weight_decay: float = 0.0,
+        cond_drop: float = 0.0,
+        guidance: float = 1.0,
     ) -> None:
         super().__init__()
         if loss not in ("v", "eps"):
@@ -252,7 +257,10 @@ class RadarDiffusion(ReconstructionModel):
         x0 = self.standardiser(self.encode_shapes(batch))
         t = self.diffusion.sample_timesteps(x0.shape[0], x0.device, generator)
         noise = torch.randn(x0.shape, generator=generator, device=x0.device)
-        radar_tokens = self.encode_radar(batch["radar"], batch["radar_mask"])
+        radar, mask = batch["radar"], batch["radar_mask"]
+        if self.training and generator is None:  # guidance: learn the unconditional model too
+            radar, mask = drop_condition(radar, mask, float(self.hparams.get("cond_drop", 0.0)))
+        radar_tokens = self.encode_radar(radar, mask)
         h_t = self.diffusion.q_sample(x0, t, noise)
         if self.hparams.get("loss", "eps") == "v":
             return F.mse_loss(self.network_output(radar_tokens, h_t, t), self.diffusion.v_target(x0, t, noise))
@@ -279,11 +287,15 @@ class RadarDiffusion(ReconstructionModel):
         """``K`` Stage-1 latents per input, ``[B, K, L, Z]`` (de-standardised), by DDIM or DDPM."""
         hp = self.hparams
         k = int(num_samples or hp.num_samples)
-        radar_tokens = self.encode_radar(batch["radar"].to(self.device), batch["radar_mask"].to(self.device))
-        radar_tokens = radar_tokens.repeat_interleave(k, dim=0)
+        radar, mask = batch["radar"].to(self.device), batch["radar_mask"].to(self.device)
+        radar_tokens = self.encode_radar(radar, mask).repeat_interleave(k, dim=0)
+        scale = float(hp.get("guidance", 1.0))
+        null_tokens = None if scale == 1.0 else \
+            self.encode_radar(torch.zeros_like(radar), torch.zeros_like(mask)).repeat_interleave(k, dim=0)
         generator = torch.Generator(self.device).manual_seed(hp.sample_seed if sample_seed is None else sample_seed)
         x = self.diffusion.sample(
-            lambda h_t, t: self.denoise_tokens(radar_tokens, h_t, t),
+            guided(lambda h_t, t: self.denoise_tokens(radar_tokens, h_t, t),
+                   lambda h_t, t: self.denoise_tokens(null_tokens, h_t, t), scale),
             (radar_tokens.shape[0], self.n_levels, self.latent_dim),
             method=sampler or hp.sampler,
             steps=steps or hp.sample_steps,

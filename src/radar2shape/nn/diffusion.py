@@ -24,6 +24,36 @@ from torch import nn
 EpsFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
 
 
+def guided(conditional: EpsFn, unconditional: EpsFn, scale: float) -> EpsFn:
+    """Classifier-free guidance (Ho & Salimans 2022): ``eps_u + scale (eps_c - eps_u)``.
+
+    ``scale = 1`` is the plain conditional model (``unconditional`` is never called); larger
+    scales push samples toward what the condition makes more likely than the prior does, the
+    lever on a model that under-uses its radar. Linear in the prediction, so it applies equally to
+    a velocity output.
+    """
+    if scale == 1.0:
+        return conditional
+
+    def eps(x: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+        unconditioned = unconditional(x, t)
+        return unconditioned + scale * (conditional(x, t) - unconditioned)
+
+    return eps
+
+
+def drop_condition(radar: torch.Tensor, mask: torch.Tensor, probability: float,
+                   generator: torch.Generator | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Training-time condition dropout for guidance: each sample, with ``probability``, becomes
+    "nothing observed" (radar zero, mask all False), the same input as a fully masked radar, so
+    the unconditional model needs no extra parameters. Returns new tensors (inputs unchanged)."""
+    if probability <= 0.0:
+        return radar, mask
+    drop = torch.rand(radar.shape[0], generator=generator, device=radar.device) < probability
+    keep = (~drop).view(-1, *([1] * (mask.dim() - 1)))
+    return radar * keep.view(-1, *([1] * (radar.dim() - 1))).to(radar.dtype), mask & keep
+
+
 def cosine_alpha_bar(t: torch.Tensor, s: float = 0.008) -> torch.Tensor:
     """Nichol & Dhariwal (2021) ``f(t) = cos^2(pi/2 (t + s) / (1 + s))`` for ``t`` in [0, 1] (not normalised)."""
     return torch.cos((t + s) / (1 + s) * math.pi / 2) ** 2

@@ -169,6 +169,7 @@ class RadarBlockEncoder(nn.Module):
         tokens = self.resnet(images).reshape(b, self.n_blocks, self.dim)
         count = weight.sum(dim=(-2, -1)).clamp(min=1.0)
         mean = (blocks * weight).sum(dim=(-2, -1)) / count
-        std = (((blocks - mean[..., None, None]) ** 2 * weight).sum(dim=(-2, -1)) / count).sqrt()
+        variance = ((blocks - mean[..., None, None]) ** 2 * weight).sum(dim=(-2, -1)) / count
+        std = variance.clamp_min(1e-12).sqrt()  # finite gradient for constant or fully masked blocks
         position = sinusoidal_embedding(torch.arange(self.n_blocks, device=radar.device), self.dim)
         return tokens + self.level(torch.cat([mean, std], dim=-1)) + position.to(tokens.dtype)
