@@ -417,6 +417,74 @@ def noise_level(cells: list[Cell], section: str) -> str:
     return noise_title(name) if not found else f"{name.capitalize()} noise (levels differ: {', '.join(sorted(found))})"
 
 
+PROFILE_FIGURE_SHAPES = 8
+
+
+def profile_figure(cells: list[Cell], layout: Layout, path: Path, n_shapes: int = PROFILE_FIGURE_SHAPES) -> Path | None:
+    """Predicted against true profiles of the first ``n_shapes`` test shapes, one panel per shape.
+
+    For each setting (``<obs>-<noise>``) of the first seed of every model that finished it, the
+    checkpoint predicts the test batch of its own saved test config (same masks and noise as its
+    scores); one figure per observability at the lowest noise level the grid has.
+    """
+    import torch
+    from matplotlib.figure import Figure
+
+    from radar2shape.commands.reconstruct import load_model
+
+    chosen: dict[str, Cell] = {}
+    for cell in cells:
+        where = layout.split(cell.name)
+        if cell.state == "done" and where and "checkpoint" in cell.record and where["row"] not in chosen \
+                and where["group"] == "full" and where["section"] == _first_section(cells, layout):
+            chosen[where["row"]] = cell
+    if not chosen:
+        return None
+    datamodule = _test_data(next(iter(chosen.values())).run_dir)
+    if datamodule is None:
+        return None
+    batch = next(iter(datamodule.test_dataloader()))
+    batch = {k: v[:n_shapes] for k, v in batch.items()}
+    truth = batch["profile"].numpy()
+    predictions = {}
+    torch.manual_seed(0)
+    for row, cell in chosen.items():
+        model = load_model(cell.run_dir / cell.record["checkpoint"])
+        predictions[layout.row_title(row)] = model.predict_profiles(batch)
+    columns = 4
+    fig = Figure(figsize=(2.4 * columns, 2.6 * math.ceil(len(truth) / columns)))
+    axes = fig.subplots(math.ceil(len(truth) / columns), columns, squeeze=False).ravel()
+    for i, ax in enumerate(axes):
+        if i >= len(truth):
+            ax.axis("off")
+            continue
+        ax.plot(truth[i][:, 0], truth[i][:, 1], "k-", lw=2.0, label="ground truth")
+        for title, profiles in predictions.items():
+            ax.plot(profiles[i][:, 0], profiles[i][:, 1], "-", lw=1.2, label=title)
+        ax.set_xlim(0, 0.55)
+        ax.set_ylim(-0.55, 0.55)
+        ax.set_aspect("equal")
+        ax.set_title(f"test #{int(batch['index'][i])}", fontsize=8)
+        ax.tick_params(labelsize=6)
+    axes[0].legend(fontsize=6, loc="upper right")
+    section = _first_section(cells, layout)
+    level = noise_level(cells, section)
+    fig.suptitle(f"profiles (r, z), full observability, {level[0].lower() + level[1:]}: "
+                 "truth and each model's prediction", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    return path
+
+
+def _first_section(cells: list[Cell], layout: Layout) -> str | None:
+    """The first noise level in run order (the grid lists the lowest first)."""
+    for cell in cells:
+        where = layout.split(cell.name)
+        if where:
+            return where["section"]
+    return None
+
+
 def write_rollsym(grid, out: Path, layout: Layout, shapes: int) -> Path:
     """``table.md`` / ``table.csv`` / ``diagnostics.csv``: one table and one diagnostics table per noise
     level (CSV rows ``<noise>/<model>``), and the per-shape scores ``scores/<run>.csv``."""
@@ -427,6 +495,7 @@ def write_rollsym(grid, out: Path, layout: Layout, shapes: int) -> Path:
                 f"Diagnostics:\n\n{markdown_table(diag_rows, diag_columns)}"
                 for (s, rows, columns), (_, diag_rows, diag_columns) in zip(tables, diagnostics)]
     copied = copy_scores(cells, out / "scores")
+    figure = profile_figure(cells, layout, out / "profiles.png")
     text = "\n\n".join(
         [f"## Roll-symmetric reconstruction ({grid.path.name})",
          "Test-set mean ± std. IoU-R: radar IoU at 20 dB below peak; IoU-S: half-section IoU; "
@@ -434,7 +503,8 @@ def write_rollsym(grid, out: Path, layout: Layout, shapes: int) -> Path:
          "Diagnostics: radar dependence = IoU-S from the shape's own radar minus IoU-S from another test "
          "shape's radar (a fixed derangement), mean ± standard error of the paired differences; shapes scored = "
          f"shapes with a defined IoU-S, of those evaluated. Per-shape scores: `scores/<run>.csv` ({copied} runs).",
-         *sections, "### Runs", runs_table(cells)]
+         *sections, "### Runs", runs_table(cells),
+         *([f"![profiles]({figure.name})"] if figure else [])]
     ) + "\n"
     (out / "table.md").write_text(text)
     if tables:
@@ -587,7 +657,8 @@ LAYOUTS: dict[str, Layout] = {
         Layout("table1", SHAPE_COLUMNS, write_table1, ("row", "group"), MODEL_TITLES, GROUP_TITLES,
                diagnostics=(DEPENDENCE_IOU, CEILING_IOU, SHAPES_IOU), describe_group=group_title(GROUP_TITLES)),
         Layout("rollsym", (IOU_R, IOU_S, MATCH_S), write_rollsym, ("row", "group", "section"),
-               {"unet": "Profile U-Net diffusion (ours)", "invrt": "InvRT"}, {"full": "Full", "partial": "Partial"},
+               {"unet": "Profile U-Net diffusion (ours)", "unet_paper": "Profile U-Net diffusion, as in the paper",
+                "invrt": "InvRT"}, {"full": "Full", "partial": "Partial"},
                noise_title, diagnostics=(DEPENDENCE_IOU_S, SHAPES_IOU_S),
                describe_group=group_title({"full": "Full", "partial": "Partial"})),
         Layout("demo", SHAPE_COLUMNS, write_demo, ("row", "section"),
