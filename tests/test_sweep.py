@@ -295,3 +295,18 @@ def test_parallel_jobs_respect_dependencies_and_match_serial(tmp_path):
     assert run_sweep([str(serial_path)]) == 0
     serial = {n: json.loads((Path(spec["out_dir"]) / n / "metrics.json").read_text())["radius_l1"] for n in ("a", "ref", "b")}
     assert serial == pytest.approx(parallel, rel=1e-5)
+
+
+def test_rollsym_report_shows_what_noise_costs_over_seed_means(tmp_path):
+    matrix = {axis: {v: {} for v in values} for axis, values in
+              {"model": ["unet"], "obs": ["full"], "noise": ["low", "high"], "seed": ["seed0", "seed1"]}.items()}
+    grid_path = write_grid(tmp_path, matrix=matrix, report="rollsym")
+    for name, iou_s in {"unet-full-low-seed0": 0.80, "unet-full-low-seed1": 0.70,
+                        "unet-full-high-seed0": 0.50, "unet-full-high-seed1": 0.60}.items():
+        run_dir = tmp_path / "runs" / name
+        run_dir.mkdir(parents=True)
+        (run_dir / "metrics.json").write_text(json.dumps({"iou_s_mean": iou_s, "iou_s_std": 0.1, "full/frusta1/iou_s_mean": 0.0}))
+        (run_dir / "done").write_text(json.dumps({"wall_seconds": 60.0}))
+    text = write_report(sweep.load_grid(grid_path), tmp_path / "report").read_text()
+    assert "| Profile U-Net diffusion (ours) | 0.750 | 0.550 | +0.200 |" in text  # seed means 0.75 and 0.55
+    assert "**0.750 ± 0.100** (seeds ± 0.071)" in text  # std of (0.8, 0.7), ddof 1

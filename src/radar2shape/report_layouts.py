@@ -485,6 +485,33 @@ def _first_section(cells: list[Cell], layout: Layout) -> str | None:
     return None
 
 
+def noise_degradation(tables, cells: list[Cell], metric: str = "iou_s") -> str | None:
+    """Markdown: each model's ``metric`` mean at every noise level and first level minus last, per
+    observability (what the noise axis costs each model); None with fewer than two levels."""
+    levels = [section for section, _, _ in tables]
+    if len(levels) < 2:
+        return None
+    values: dict[str, dict[str, dict[str, float]]] = {}  # model -> group -> level -> mean
+    groups: list[str] = []
+    for section, rows, _ in tables:
+        for title, metrics in rows:
+            for key, value in metrics.items():
+                group, _, name = key.rpartition("/")
+                if "/" not in group and name == f"{metric}_mean" and not math.isnan(value):  # not per class
+                    values.setdefault(title, {}).setdefault(group, {})[section] = value
+                    groups += [group] if group not in groups else []
+    header = ["model"] + [f"{g.capitalize()}: {noise_level(cells, lv).split(' (')[0].lower()}" for g in groups for lv in levels]
+    header += [f"{g.capitalize()}: {levels[0]} − {levels[-1]}" for g in groups]
+    lines = ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
+    for title, by_group in values.items():
+        cells_row = [f"{by_group.get(g, {}).get(lv, math.nan):.3f}" for g in groups for lv in levels]
+        for g in groups:
+            first, last = by_group.get(g, {}).get(levels[0], math.nan), by_group.get(g, {}).get(levels[-1], math.nan)
+            cells_row.append(f"{first - last:+.3f}")
+        lines.append(f"| {title} | " + " | ".join("n/a" if "nan" in c else c for c in cells_row) + " |")
+    return "\n".join(lines)
+
+
 def write_rollsym(grid, out: Path, layout: Layout, shapes: int) -> Path:
     """``table.md`` / ``table.csv`` / ``diagnostics.csv``: one table and one diagnostics table per noise
     level (CSV rows ``<noise>/<model>``), and the per-shape scores ``scores/<run>.csv``."""
@@ -496,6 +523,9 @@ def write_rollsym(grid, out: Path, layout: Layout, shapes: int) -> Path:
                 for (s, rows, columns), (_, diag_rows, diag_columns) in zip(tables, diagnostics)]
     copied = copy_scores(cells, out / "scores")
     figure = profile_figure(cells, layout, out / "profiles.png")
+    degradation = noise_degradation(tables, cells)
+    if degradation:
+        sections.append("### What noise costs (IoU-S, mean over seeds)\n\n" + degradation)
     text = "\n\n".join(
         [f"## Roll-symmetric reconstruction ({grid.path.name})",
          "Test-set mean ± std. IoU-R: radar IoU at 20 dB below peak; IoU-S: half-section IoU; "
