@@ -31,10 +31,12 @@ DEFAULT_RADAR = "conf/radar/default.yaml"
 class SimulatorOptions:
     """Keys the ``simulator`` section may set (unset ones keep ``simulate``'s defaults)."""
 
-    method: Optional[str] = None  # "po" (default) or "sbr"
+    method: Optional[str] = None  # "po" (default), "sbr", "po+ec" or "sbr+ec"
     max_bounces: Optional[int] = None
     rays_per_wavelength: Optional[float] = None
     shadowing: Optional[bool] = None
+    polarization: Optional[str] = None  # "VV" (default), "HH", "HV" or "VH": records hold one channel
+    edge_threshold_deg: Optional[float] = None  # +ec methods: sharp-edge normal turn in degrees
 
 
 @dataclass
@@ -84,8 +86,15 @@ class BuildConfig:
         if not self.sampling.sdf_near_sigmas or min(self.sampling.sdf_near_sigmas) <= 0:
             raise UserInputError(f"sampling.sdf_near_sigmas: expected positive numbers, got {self.sampling.sdf_near_sigmas}")
         options = structured(SimulatorOptions, self.simulator, "simulator")
-        if options.method not in (None, "po", "sbr"):
-            raise UserInputError(f"simulator.method: expected 'po' or 'sbr', got {options.method!r}")
+        if options.method not in (None, "po", "sbr", "po+ec", "sbr+ec"):
+            raise UserInputError(f"simulator.method: expected 'po' or 'sbr', either optionally with edge currents "
+                                 f"('po+ec', 'sbr+ec'), got {options.method!r}")
+        if options.polarization not in (None, "VV", "HH", "HV", "VH"):
+            raise UserInputError(f"simulator.polarization: expected 'VV', 'HH', 'HV' or 'VH' (one channel per "
+                                 f"record), got {options.polarization!r}")
+        if options.edge_threshold_deg is not None and not 0.0 < options.edge_threshold_deg <= 180.0:
+            raise UserInputError(f"simulator.edge_threshold_deg: expected degrees in (0, 180], "
+                                 f"got {options.edge_threshold_deg!r}")
         try:
             RadarGrid.from_config(self.radar)
         except UserInputError as err:

@@ -69,7 +69,7 @@ def read_record(path: str | Path, keys: tuple[str, ...] | list[str] | None = Non
 
 def remove_stale_temps(root: str | Path) -> int:
     """Delete temp files left by killed writers; call only when no writer is running."""
-    stale = list((Path(root) / "records").glob("*/.*.tmp"))
+    stale = list((Path(root) / "records").glob("*/.*.tmp*"))
     for path in stale:
         path.unlink(missing_ok=True)
     return len(stale)

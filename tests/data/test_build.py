@@ -255,3 +255,17 @@ def test_command_prints_a_summary_and_names_a_missing_config(tmp_path, capsys):
         build_data.main(args)
     with pytest.raises(SystemExit):
         parser.parse_args(["--config", "x", "--out", "y", "--shard", "1-2"])
+
+
+def test_stale_temp_files_of_killed_writers_are_removed(tmp_path):
+    """Whatever suffix the atomic writer gives its temp files (``.tmp.npz`` for records)."""
+    from data_modules.records import remove_stale_temps
+    from radar2shape.atomic import _temp_for as temp_path  # the writer's own naming
+
+    folder = tmp_path / "records" / "train"
+    folder.mkdir(parents=True)
+    temps = [temp_path(folder / "000002.npz"), temp_path(folder / "manifest.json")]
+    for path in temps + [folder / "000001.npz"]:
+        path.write_bytes(b"x")
+    assert remove_stale_temps(tmp_path) == 2
+    assert sorted(p.name for p in folder.iterdir()) == ["000001.npz"]

@@ -1,4 +1,5 @@
-"""``radar2shape simulate MESH --out OUT.npz``: the PO (or PO + SBR) radar response of one mesh file.
+"""``radar2shape simulate MESH --out OUT.npz``: the radar response of one mesh file (PO, PO + SBR,
+either with equivalent edge currents), in one polarisation or all four.
 
 The axes come from ``--grid`` (default conf/radar/default.yaml's values) and can be overridden
 one by one with START:STOP:COUNT (both ends included). The mesh is centred and scaled so its
@@ -53,8 +54,14 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     size.add_argument("--size-m", type=float, help="longest bbox side in metres after centring (default: grid size_m)")
     size.add_argument("--keep-size", action="store_true", help="simulate the mesh as given, in metres")
     parser.add_argument("--no-shadow", action="store_true", help="back-face culling only (no occlusion rays)")
-    parser.add_argument("--method", default="po", choices=["po", "sbr"],
-                        help="po, or sbr: PO first bounce + shooting and bouncing rays (docs/sbr_lora.md)")
+    parser.add_argument("--method", default="po", choices=["po", "sbr", "po+ec", "sbr+ec"],
+                        help="po, sbr (PO first bounce + shooting and bouncing rays, docs/sbr_lora.md), "
+                             "or either plus equivalent edge currents of the sharp edges (+ec)")
+    parser.add_argument("--pol", default="VV", type=str.upper, choices=["VV", "HH", "HV", "VH", "ALL"],
+                        help="polarisation, first letter transmit, second receive (V = theta-hat, H = phi-hat); "
+                             "ALL writes [A, R, F, 4] in the order VV, VH, HV, HH")
+    parser.add_argument("--edge-threshold-deg", type=float, default=30.0,
+                        help="+ec: normal turn (deg) from which an edge between two faces is sharp, in (0, 180]")
     parser.add_argument("--bounces", type=int, default=5, help="sbr: bounces traced, >= 1 (1 = PO only)")
     parser.add_argument("--rays-per-wavelength", type=float, default=8.0,
                         help="sbr: ray tubes per wavelength at the highest frequency, > 0")
@@ -66,6 +73,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from radar2shape.radar.grid import RadarGrid
+    from radar2shape.radar.edges import check_threshold
     from radar2shape.radar.sbr import check_options
 
     grid = RadarGrid.from_yaml(args.grid) if args.grid else RadarGrid.default()
@@ -76,9 +84,12 @@ def main(args: argparse.Namespace) -> int:
     if size is not None and not (np.isfinite(size) and size > 0):
         raise UserInputError(f"--size-m: expected a positive number of metres, got {size}")
     grid = RadarGrid(aspect, roll, freq, size or 1.0)  # validates the axes before any work
-    if args.method == "sbr":
+    if args.method.startswith("sbr"):
         check_options(args.bounces, args.rays_per_wavelength)
-    cells = len(grid.aspect_rad) * len(grid.roll_rad) * len(grid.freq_hz)
+    if args.method.endswith("+ec"):
+        check_threshold(args.edge_threshold_deg)
+    channels = 4 if args.pol == "ALL" else 1
+    cells = len(grid.aspect_rad) * len(grid.roll_rad) * len(grid.freq_hz) * channels
     check_memory(cells * BYTES_PER_CELL, f"a response of {len(grid.aspect_rad)} x {len(grid.roll_rad)} x "
                  f"{len(grid.freq_hz)} (aspect x roll x freq)", args.memory_limit_gb)
     outputs = [check_output_path(args.out, "--out", (".npz",))]
@@ -91,21 +102,30 @@ def main(args: argparse.Namespace) -> int:
     from radar2shape.geometry.mesh_io import load_mesh
     from radar2shape.geometry.normalise import normalise, scaled
     from radar2shape.radar import save_response, simulate, to_db
+    from radar2shape.radar.edges import ALL_POLARIZATIONS
 
     mesh = load_mesh(args.mesh)
     if size is not None:
         mesh = scaled(normalise(mesh)[0], size)
     start = time.perf_counter()
-    sbr_options = {"max_bounces": args.bounces, "rays_per_wavelength": args.rays_per_wavelength}
+    options = {"polarization": args.pol.lower() if args.pol == "ALL" else args.pol}
+    if args.method.startswith("sbr"):
+        options.update(max_bounces=args.bounces, rays_per_wavelength=args.rays_per_wavelength)
+    if args.method.endswith("+ec"):
+        options["edge_threshold_deg"] = args.edge_threshold_deg
     response = simulate(mesh, grid.aspect_rad, grid.roll_rad, grid.freq_hz, method=args.method,
-                        shadowing=not args.no_shadow, **(sbr_options if args.method == "sbr" else {}))
+                        shadowing=not args.no_shadow, **options)
     seconds = time.perf_counter() - start
+    names = ALL_POLARIZATIONS if args.pol == "ALL" else args.pol
     with atomic_paths(*outputs) as temps:  # both files, or neither
-        save_response(temps[0], response, grid.aspect_rad, grid.roll_rad, grid.freq_hz, size_m=size)
+        save_response(temps[0], response, grid.aspect_rad, grid.roll_rad, grid.freq_hz, size_m=size,
+                      polarization=names)
         if args.plot:
             from radar2shape.radar.plot import plot_response  # matplotlib only when asked for
 
-            plot_response(temps[1], response, grid.aspect_rad, grid.roll_rad, grid.freq_hz, title=str(args.mesh))
+            first = response if response.ndim == 3 else response[..., 0]  # "all": the VV channel
+            plot_response(temps[1], first, grid.aspect_rad, grid.roll_rad, grid.freq_hz,
+                          title=f"{args.mesh} ({names if isinstance(names, str) else names[0]})")
     print(f"wrote {outputs[0]}: response {list(response.shape)} (aspect, roll, freq), "
           f"{len(mesh.faces)} faces, peak {to_db(response).max():.1f} dBsm, {seconds:.2f} s")
     if args.plot:

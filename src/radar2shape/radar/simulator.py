@@ -9,11 +9,11 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from radar2shape.errors import UserInputError
-from radar2shape.radar import po, sbr
+from radar2shape.radar import edges, po, sbr
 from radar2shape.radar.facets import FacetMesh, facet_mesh
 from radar2shape.radar.shadow import Occluder
 
-METHODS = ("po", "sbr")
+METHODS = ("po", "sbr", "po+ec", "sbr+ec")
 # Facet-direction pairs per chunk: the [F, chunk] float64 work arrays stay near cache size
 # (about 1 MB), and the Embree batch is still large enough for its call overhead not to matter.
 CHUNK_ENTRIES = 2**17
@@ -65,23 +65,42 @@ def worker_count() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
+def _sbr_part(facets, u, k, names, max_bounces, rays_per_wavelength, real_dtype) -> np.ndarray:
+    """SBR bounces 2.. for each asked polarisation, [D, N, P] (one ray trace: rays do not depend on it)."""
+    return sbr.multibounce(facets, u, k, max_bounces, rays_per_wavelength, real_dtype, polarization=list(names))
+
+
 def simulate(mesh, aspect_rad, roll_rad, freq_hz, method: str = "po", shadowing: bool = True,
              dtype=np.complex64, max_bounces: int = sbr.DEFAULT_BOUNCES,
-             rays_per_wavelength: float = sbr.DEFAULT_RAYS_PER_WAVELENGTH) -> np.ndarray:
+             rays_per_wavelength: float = sbr.DEFAULT_RAYS_PER_WAVELENGTH, polarization="VV",
+             edge_threshold_deg: float = edges.SHARP_EDGE_DEG) -> np.ndarray:
     """Complex monostatic response S [N_aspect, N_roll, N_freq] of a PEC mesh, |S|^2 = RCS (m^2).
 
     ``mesh`` (trimesh.Trimesh or (vertices, faces)) is in metres as given, the phase referenced
     to its coordinate origin; the radar looks from u = (sin a cos p, sin a sin p, cos a).
     ``shadowing`` adds Embree occlusion rays to back-face culling (facet-level PO shadowing,
-    right for non-convex bodies). Degenerate faces are dropped. PO gives HH = VV.
-    ``method="sbr"`` adds the shooting-and-bouncing-rays sum of bounces 2..``max_bounces``
-    (``rays_per_wavelength`` at the highest frequency; theta-theta polarisation) to the PO
-    first bounce: see radar/sbr.py and docs/sbr_lora.md.
+    right for non-convex bodies). Degenerate faces are dropped.
+
+    ``method``: "po" physical optics; "sbr" adds the shooting-and-bouncing-rays sum of bounces
+    2..``max_bounces`` (``rays_per_wavelength`` at the highest frequency; radar/sbr.py,
+    docs/sbr_lora.md); "po+ec" / "sbr+ec" add the equivalent edge currents of the sharp edges
+    (normals turning by at least ``edge_threshold_deg``, and open boundaries; radar/edges.py).
+
+    ``polarization``: "VV" (transmit and receive theta-hat = d u / d aspect), "HH" (phi-hat =
+    d u / d roll, normalised; at the poles the roll is taken as 0), "HV" (transmit H, receive V)
+    or "VH" give [A, R, F]; "all" gives [A, R, F, 4] in the order VV, VH, HV, HH (a trailing
+    reshape to (2, 2) is [transmit, receive] with V = 0, H = 1), and a list of names gives them
+    in that order. PO alone gives S_VV = S_HH and no cross-polarisation, so the default ("VV")
+    is PO's scalar response.
     """
     if method not in METHODS:
         raise UserInputError(f"method: expected one of {METHODS}, got {method!r}")
-    if method == "sbr":
+    names, stacked = edges.check_polarization(polarization)
+    if method.startswith("sbr"):
         sbr.check_options(max_bounces, rays_per_wavelength)
+    with_edges = method.endswith("+ec")
+    if with_edges:
+        edges.check_threshold(edge_threshold_deg)
     real_dtype = _real_dtype(dtype)
     aspect, roll, freq = check_axes(aspect_rad, roll_rad, freq_hz)
     facets = mesh if isinstance(mesh, FacetMesh) else facet_mesh(mesh)
@@ -97,6 +116,10 @@ def simulate(mesh, aspect_rad, roll_rad, freq_hz, method: str = "po", shadowing:
     blocks = po.frequency_blocks(k)
     occluder = Occluder(facets) if shadowing else None
     out = np.empty((len(u), len(k)), dtype=dtype)
+    fringe = None
+    if with_edges:
+        diffraction = edges.EdgeDiffraction(facets, edge_threshold_deg, occluder.scene if occluder else None)
+        fringe = np.zeros((len(u), len(k), len(names)), dtype=dtype)
 
     def run(chunk: slice) -> None:
         uc = u[chunk]
@@ -106,6 +129,8 @@ def simulate(mesh, aspect_rad, roll_rad, freq_hz, method: str = "po", shadowing:
             lit = occluder.visible(uc, lit)
         for block in blocks:
             out[chunk, block] = po.po_block(facets, uc, cosine, lit, k[block], real_dtype)
+        if fringe is not None:
+            fringe[chunk] = diffraction.response(uc, k, names, blocks, real_dtype)
 
     step = max(1, CHUNK_ENTRIES // facets.n_faces)
     chunks = [slice(s, s + step) for s in range(0, len(u), step)]
@@ -116,8 +141,27 @@ def simulate(mesh, aspect_rad, roll_rad, freq_hz, method: str = "po", shadowing:
     else:
         for chunk in chunks:
             run(chunk)
+    if names != ("VV",) or fringe is not None:
+        out = _polarised(out, names, fringe)
+        if method.startswith("sbr"):
+            out += _sbr_part(facets, u, k, names, max_bounces, rays_per_wavelength, real_dtype).astype(dtype)
+        out *= po.cis(np.outer(2.0 * (u @ facets.origin), k)).astype(dtype)[..., None]
+        out = out[inverse].reshape(len(aspect), len(roll), len(k), len(names))
+        return out if stacked else out[..., 0]
     if method == "sbr":
         out += sbr.multibounce(facets, u, k, max_bounces, rays_per_wavelength, real_dtype).astype(dtype)
     # Put back the phase of the local origin: S(origin) = S(local) exp(2jk u.o).
     out *= po.cis(np.outer(2.0 * (u @ facets.origin), k)).astype(dtype)
-    return out[inverse].reshape(len(aspect), len(roll), len(k))
+    out = out[inverse].reshape(len(aspect), len(roll), len(k))
+    return out[..., None] if stacked else out
+
+
+def _polarised(scalar: np.ndarray, names: tuple[str, ...], fringe: np.ndarray | None) -> np.ndarray:
+    """[D, N, P]: PO's scalar on the co-polarised channels (zero cross-polarised) plus the fringe."""
+    out = np.zeros(scalar.shape + (len(names),), dtype=scalar.dtype)
+    for i, name in enumerate(names):
+        if name[0] == name[1]:
+            out[..., i] = scalar
+    if fringe is not None:
+        out += fringe
+    return out

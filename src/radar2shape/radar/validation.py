@@ -1,10 +1,10 @@
-"""PO against the Austin RCS Benchmark Suite (shared/validation/austin-rcs): NASA almond and plates.
+"""PO and PO + edge currents against the Austin RCS Benchmark Suite (shared/validation/austin-rcs).
 
 Each data file holds rows (frequency Hz, theta deg, phi deg, RCS dBsm) for one frequency and
-polarisation; ``radar.measured.read_austin`` parses them (checked rows, named errors). The
-suite's error measure: with TH = max(ref_dB) - 80,
+polarisation (``.H.`` = HH, phi-hat; ``.V.`` = VV, theta-hat); ``radar.measured.read_austin``
+parses them (checked rows, named errors). The suite's error measure: with TH = max(ref_dB) - 80,
 avg_err_dB = mean over phi of |max(sim_dB, TH) - max(ref_dB, TH)|.
-Run ``python -m radar2shape.radar.validation [DIR]`` for the table in docs/radar.md.
+Run ``python -m radar2shape.radar.validation [DIR]`` for the tables in docs/radar.md.
 """
 
 from __future__ import annotations
@@ -36,6 +36,14 @@ class Cut:
     phi_rad: np.ndarray
     rcs_db: np.ndarray
 
+    @property
+    def polarization(self) -> str:
+        """"HH" or "VV" from the file name's polarisation letter (``...fx3.H.txt``)."""
+        letter = self.name.split(".")[-2].upper()
+        if letter not in ("H", "V"):
+            raise UserInputError(f"{self.name}: expected a polarisation letter H or V before '.txt', got {letter!r}")
+        return letter * 2
+
 
 def default_dir() -> Path:
     """$RADAR2SHAPE_VALIDATION or ../shared/validation beside the repository."""
@@ -64,17 +72,20 @@ def sector_err_db(sim_db: np.ndarray, cut: Cut, centre_deg: float = 90.0, half_d
     return float(np.mean(np.abs(sim_db - cut.rcs_db)[sector]))
 
 
-def simulate_cuts(mesh, cuts: list[Cut]) -> list[np.ndarray]:
-    """PO RCS in dBsm along each cut; cuts sharing a frequency and theta share one simulation."""
+def simulate_cuts(mesh, cuts: list[Cut], method: str = "po") -> list[np.ndarray]:
+    """RCS in dBsm along each cut in its own polarisation; cuts sharing a frequency and theta
+    share one simulation (both polarisations at once)."""
     out: list[np.ndarray | None] = [None] * len(cuts)
     groups: dict[tuple[float, float], list[int]] = {}
     for i, cut in enumerate(cuts):
         groups.setdefault((cut.freq_hz, cut.theta_rad), []).append(i)
     for (freq, theta), members in groups.items():
         phi = np.unique(np.concatenate([cuts[i].phi_rad for i in members]))
-        rcs_db = to_db(simulate(mesh, [theta], phi, [freq])[0, :, 0], floor_db=-200.0)
+        names = tuple(sorted({cuts[i].polarization for i in members}))
+        response = simulate(mesh, [theta], phi, [freq], method=method, polarization=names)[0, :, 0]
+        rcs_db = to_db(response, floor_db=-200.0)  # [phi, polarisation]
         for i in members:
-            out[i] = rcs_db[np.searchsorted(phi, cuts[i].phi_rad)]
+            out[i] = rcs_db[np.searchsorted(phi, cuts[i].phi_rad), names.index(cuts[i].polarization)]
     return out
 
 
@@ -95,12 +106,12 @@ def almond_cuts(folder: Path, freq_ghz: float | None = None) -> list[Cut]:
     return cuts
 
 
-def almond_table(folder: Path, mesh: trimesh.Trimesh | None = None,
-                 freq_ghz: float | None = None) -> list[tuple[str, float, float, float]]:
+def almond_table(folder: Path, mesh: trimesh.Trimesh | None = None, freq_ghz: float | None = None,
+                 method: str = "po") -> list[tuple[str, float, float, float]]:
     """(file, GHz for the 9.936 in almond, avg_err_dB, broadside 60-120 deg error) per almond file."""
     mesh = nasa_almond(ALMOND_LENGTH_M) if mesh is None else mesh
     cuts = almond_cuts(folder, freq_ghz)
-    sims = simulate_cuts(mesh, cuts)
+    sims = simulate_cuts(mesh, cuts, method)
     return [(cut.name, cut.freq_hz / 1e9, avg_err_db(sim, cut.rcs_db), sector_err_db(sim, cut))
             for cut, sim in zip(cuts, sims)]
 
@@ -121,13 +132,13 @@ def plate(width_m: float, length_m: float, normal_axis: int = 2, long_axis: int 
 PLATES = [("sx1.f9", 6, 0, 1), ("sx1.f10", 6, 0, 1), ("sx1.fx1", 6, 0, 1), ("sx1.f11", 6, 0, 1), ("s1.f10", 4, 2, 0)]
 
 
-def plate_table(folder: Path) -> list[tuple[str, float, float, float]]:
+def plate_table(folder: Path, method: str = "po") -> list[tuple[str, float, float, float]]:
     """(file, GHz, avg_err_dB, broadside error dB) for the plate-IIA references (W x 7W/4)."""
     rows = []
     for tag, width_in, normal, long_axis in PLATES:
         cuts = [read_cut(folder / "austin-rcs" / "plate-IIA" / f"ref_rcs.II.A.{tag}.{pol}.txt") for pol in "HV"]
         mesh = plate(width_in * INCH, 1.75 * width_in * INCH, normal_axis=normal, long_axis=long_axis)
-        for cut, sim in zip(cuts, simulate_cuts(mesh, cuts)):
+        for cut, sim in zip(cuts, simulate_cuts(mesh, cuts, method)):
             rows.append((cut.name, cut.freq_hz / 1e9, avg_err_db(sim, cut.rcs_db), float(sim[0] - cut.rcs_db[0])))
     return rows
 
@@ -136,12 +147,15 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder", nargs="?", type=Path, default=default_dir())
     args = parser.parse_args(argv)
-    print("| file | f (GHz) | avg_err_dB | broadside 60-120 deg (dB) |\n|---|---|---|---|")
-    for name, freq, err, sector in almond_table(args.folder):
-        print(f"| {name} | {freq:.3f} | {err:.2f} | {sector:.2f} |")
-    print("\n| file | f (GHz) | avg_err_dB | PO - reference at phi = 0 (dB) |\n|---|---|---|---|")
-    for name, freq, err, offset in plate_table(args.folder):
-        print(f"| {name} | {freq:.3f} | {err:.2f} | {offset:+.2f} |")
+    po, ec = almond_table(args.folder), almond_table(args.folder, method="po+ec")
+    print("| file | f (GHz) | avg_err_dB PO | avg_err_dB PO+EC | broadside PO | broadside PO+EC |\n|---|---|---|---|---|---|")
+    for (name, freq, err, sector), (_, _, err_ec, sector_ec) in zip(po, ec):
+        print(f"| {name} | {freq:.3f} | {err:.2f} | {err_ec:.2f} | {sector:.2f} | {sector_ec:.2f} |")
+    po, ec = plate_table(args.folder), plate_table(args.folder, method="po+ec")
+    print("\n| file | f (GHz) | avg_err_dB PO | avg_err_dB PO+EC | sim - reference at phi = 0, PO+EC (dB) |"
+          "\n|---|---|---|---|---|")
+    for (name, freq, err, _), (_, _, err_ec, offset_ec) in zip(po, ec):
+        print(f"| {name} | {freq:.3f} | {err:.2f} | {err_ec:.2f} | {offset_ec:+.2f} |")
     return 0
 
 
