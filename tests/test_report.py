@@ -56,7 +56,7 @@ def test_report_writes_table1_layout_csv_and_figure(grid, tmp_path):
     assert cli.main(["report", "--grid", str(grid), "--out", str(out)]) == 0
     text = (out / "table1.md").read_text()
     header = next(line for line in text.splitlines() if line.startswith("| model"))
-    assert header.count("full:") == 3 and header.count("partial (mask not recorded):") == 3  # no config, no hint
+    assert header.count("full:") == 3 and header.count("partial:") == 3  # no finished partial run: nothing to say
     table, runs = text.split("## Runs")
     rows = {line.split("|")[1].strip(): line for line in table.split("###")[0].splitlines() if line.startswith("| ")}
     assert "**1.00 ± 0.10**" in rows["Radar2Shape"] and "**0.800 ± 0.050**" in rows["Radar2Shape"]

@@ -106,7 +106,7 @@ def group_title(titles: dict[str, str]):
 
     def describe(group: str, cells: list[Cell]) -> str:
         base = titles.get(group, group)
-        found = {masking(cell, group) for cell in cells} - {None}
+        found = {masking(cell, group) for cell in cells if cell.state in ("done", "tested")} - {None}  # runs not done say nothing
         if not found:
             return base
         return f"{base} ({found.pop()})" if len(found) == 1 else f"{base} (masks differ: {', '.join(sorted(found))})"
