@@ -26,6 +26,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+from dataclasses import replace
 
 from radar2shape.reporting import Cell, Column, Layout, collect_cells, markdown_table, run_notes, runs_table, write_csv
 
@@ -593,7 +594,10 @@ def monocone_cells(scores: list[dict], columns) -> list[Cell]:
     for name, rows in cells.items():
         metrics = {}
         for column in columns:
-            metrics[f"{column.key}_mean"], metrics[f"{column.key}_std"] = _mean_std([float(r[column.key]) for r in rows])
+            values = [float(r[column.key]) for r in rows]
+            metrics[f"{column.key}_mean"], metrics[f"{column.key}_std"] = _mean_std(values)
+            metrics[f"{column.key}_count"] = float(np.isfinite(values).sum())
+        metrics["num_shapes"] = float(len(rows))
         out.append(Cell(name, Path(), "done", {}, metrics))
     return out
 
@@ -623,13 +627,17 @@ def write_monocone(grid, out: Path, layout: Layout, shapes: int) -> Path:
               f"complex noise at {info['noise_db']:g} dBsm (1 m scale), written as generic CSV and read back through "
               f"`radar.measured` with `--size-m {size:g}`. Partial: one contiguous aspect window keeping "
               f"{100 * info['keep']:.0f} % of the aspects, the other rows absent (masked on the model grid). "
-              "No model saw a monocone in training (zero-shot): the 3D model was trained on `parts_tiny`, the "
-              "profile models on `frusta_rollsym`.", "",
+              "No model saw a monocone in training (zero-shot): the 3D model was trained on a `parts` set, the "
+              "profile models on a `frusta` set (the checkpoints below say which runs).", "",
               "Cells: mean ± std over the targets, best of each column in bold. CD = Chamfer-L2 x10^3, IoU volumetric, "
               "F-score at 1 % of the unit cube; IoU-S / MATCH-S compare the half cross-sections (docs/rollsym.md; a 3D "
               "mesh that is not a solid of revolution scores IoU-S 0 and no MATCH-S). Control rows: each target "
               "reconstructed from the next target's radar.", "",
               markdown_table(rows, columns), "",
+              "Targets scored (a metric is undefined for a target whose prediction has no valid surface or profile):", "",
+              markdown_table(*layout.tables(monocone_cells(scores, layout.columns),
+                                            tuple(replace(c, header=f"n {c.header.split(' ')[0]}", total="num_shapes")
+                                                  for c in layout.columns))[0][1:]), "",
               "## Does the radar matter? (real minus control, paired over targets)", "",
               "Each target scored with the reconstruction from its own radar minus the reconstruction from the next "
               "target's radar: mean ± standard error of the paired differences. Near zero = the output hardly "
