@@ -696,6 +696,7 @@ LAYOUTS: dict[str, Layout] = {
                diagnostics=(DEPENDENCE_IOU, CEILING_IOU, SHAPES_IOU), describe_group=group_title(GROUP_TITLES)),
         Layout("rollsym", (IOU_R, IOU_S, MATCH_S), write_rollsym, ("row", "group", "section"),
                {"unet": "Profile U-Net diffusion (ours)", "unet_paper": "Profile U-Net diffusion, as in the paper",
+                "unet_cfg": "Profile U-Net diffusion + guidance (drop 0.15, scale 2)",
                 "invrt": "InvRT"}, {"full": "Full", "partial": "Partial"},
                noise_title, diagnostics=(DEPENDENCE_IOU_S, SHAPES_IOU_S),
                describe_group=group_title({"full": "Full", "partial": "Partial"})),
