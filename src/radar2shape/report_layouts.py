@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from dataclasses import replace
 
-from radar2shape.reporting import Cell, Column, Layout, collect_cells, markdown_table, run_notes, runs_table, write_csv
+from radar2shape.reporting import SEED_SUFFIX, Cell, Column, Layout, collect_cells, markdown_table, run_notes, runs_table, write_csv
 
 CHAMFER = Column("chamfer_l2_x1e3", "CD x10^3 ↓", higher_is_better=False, digits=2)
 IOU = Column("iou", "IoU ↑", higher_is_better=True)
@@ -405,17 +405,16 @@ def noise_title(noise: str) -> str:
 def noise_level(cells: list[Cell], section: str) -> str:
     """A section's title from its runs' saved test configs ("Low noise (-60 dB re peak)"), else
     :func:`noise_title` of its name; "levels differ" when the runs disagree."""
-    name = section.split("-seed")[0]
     found = set()
     for cell in cells:
-        parts = re.sub(r"-seed\d+$", "", cell.name).split("-")
-        config = test_config(cell.run_dir) if len(parts) == 3 and parts[2] == name and cell.run_dir != Path() else None
+        parts = SEED_SUFFIX.sub("", cell.name).split("-")
+        config = test_config(cell.run_dir) if len(parts) == 3 and parts[2] == section and cell.run_dir != Path() else None
         if config is not None and "test_noise_db" in config:
             reference = " re peak" if config.get("noise_reference") == "peak" else " dBsm" if config.get("noise_reference") == "absolute" else ""
             found.add(f"{float(config['test_noise_db']):g} dB{reference}".replace("dB dBsm", "dBsm"))
     if len(found) == 1:
-        return f"{name.capitalize()} noise ({found.pop()})"
-    return noise_title(name) if not found else f"{name.capitalize()} noise (levels differ: {', '.join(sorted(found))})"
+        return f"{section.capitalize()} noise ({found.pop()})"
+    return noise_title(section) if not found else f"{section.capitalize()} noise (levels differ: {', '.join(sorted(found))})"
 
 
 PROFILE_FIGURE_SHAPES = 8
@@ -617,7 +616,8 @@ def write_monocone(grid, out: Path, layout: Layout, shapes: int) -> Path:
         scores = list(csv.DictReader(handle))
     shutil.copyfile(work / "scores.csv", out / "scores.csv")
     info = json.loads((work / "experiment.json").read_text())
-    (_, rows, columns), *_ = layout.tables(monocone_cells(scores, layout.columns))
+    target_cells = monocone_cells(scores, layout.columns)
+    (_, rows, columns), *_ = layout.tables(target_cells)
     write_csv(rows, columns, out / "monocone.csv")
     low, high = info["model_band_ghz"]
     size = info["size_m"]
@@ -635,7 +635,7 @@ def write_monocone(grid, out: Path, layout: Layout, shapes: int) -> Path:
               "reconstructed from the next target's radar.", "",
               markdown_table(rows, columns), "",
               "Targets scored (a metric is undefined for a target whose prediction has no valid surface or profile):", "",
-              markdown_table(*layout.tables(monocone_cells(scores, layout.columns),
+              markdown_table(*layout.tables(target_cells,
                                             tuple(replace(c, header=f"n {c.header.split(' ')[0]}", total="num_shapes")
                                                   for c in layout.columns))[0][1:]), "",
               "## Does the radar matter? (real minus control, paired over targets)", "",

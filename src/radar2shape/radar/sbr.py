@@ -44,6 +44,7 @@ from embreex.mesh_construction import TriangleMesh
 
 from radar2shape.errors import UserInputError
 from radar2shape.radar import po
+from radar2shape.radar.edges import polarisation_basis
 from radar2shape.radar.facets import FacetMesh
 
 DEFAULT_BOUNCES = 5
@@ -116,15 +117,6 @@ def default_workers() -> int:
     return worker_count()
 
 
-def polarisation(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(theta-hat, phi-hat) of each direction [D, 3]; at the poles the roll angle is taken as 0."""
-    aspect = np.arccos(np.clip(u[:, 2], -1.0, 1.0))
-    roll = np.arctan2(u[:, 1], u[:, 0])
-    theta = np.stack([np.cos(aspect) * np.cos(roll), np.cos(aspect) * np.sin(roll), -np.sin(aspect)], axis=-1)
-    phi = np.stack([-np.sin(roll), np.cos(roll), np.zeros_like(roll)], axis=-1)
-    return theta, phi
-
-
 @dataclass(frozen=True)
 class TubeGrid:
     """The launch grid of one call: square tubes of side ``delta`` covering the disk of ``radius``.
@@ -193,7 +185,7 @@ def launch_windows(vertices: np.ndarray, u: np.ndarray) -> np.ndarray:
     out = np.empty((len(u), 4))
     step = max(1, HULL_VALUES // len(points))
     for s in range(0, len(u), step):
-        for axis, basis in enumerate(polarisation(u[s:s + step])):
+        for axis, basis in enumerate(polarisation_basis(u[s:s + step])):
             proj = basis @ points.T
             out[s:s + step, 2 * axis] = proj.min(axis=1)
             out[s:s + step, 2 * axis + 1] = proj.max(axis=1)
@@ -358,7 +350,7 @@ def shoot(shot: Shot, tracer: RayTracer, start: int, stop: int) -> tuple[int, np
     """
     d_idx, s1, s2, lo, hi = _launch(shot, start, stop)
     u = shot.u[lo:hi]
-    theta, phi = polarisation(u)
+    theta, phi = polarisation_basis(u)
     state = _initial_state(shot, u, theta, phi, d_idx, s1, s2)
     del s1, s2
     u_rows, basis = np.ascontiguousarray(u.T), (np.ascontiguousarray(theta.T), np.ascontiguousarray(phi.T))
