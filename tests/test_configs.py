@@ -66,6 +66,7 @@ SETUPS = {
     "table1_tiny": Setup("cpu", "shape_metrics", "parts16", model="tmnet_tiny.yaml"),
     "table1_lora": Setup("cpu", "shape_metrics", "parts16", before=("table1_tiny",), base="radar_diffusion_parts_cpu"),
     "rollsym_tiny": Setup("cpu", "profile_metrics", "frusta16", model="profile_unet_tiny.yaml"),
+    "table1_medium": Setup("cpu", "shape_metrics", "parts64", model="sdf_vae_medium.yaml", tiny_points=True),
     "rollsym_medium": Setup("cpu", "profile_metrics", "frusta32x64", model="profile_unet_medium.yaml"),
     "sdf_vae_parts": Setup("gpu", "shape_metrics", "parts16", tiny_points=True),  # Stage 1 reads no radar
     "sdf_vae_frusta": Setup("gpu", "shape_metrics", "frusta16", tiny_points=True),
@@ -205,7 +206,8 @@ def test_experiment_fits_one_step_and_saves_a_loadable_checkpoint(name, runs):
 MODELS = sorted(p.name for p in (CONF / "model").glob("*.yaml"))
 NEEDS_CHECKPOINT = {"lora_radar_diffusion.yaml"}  # built by the experiment tests from a trained Stage 2
 STAGE1 = {"radar_diffusion.yaml": "sdf_vae.yaml", "radar_diffusion_cpu.yaml": "sdf_vae_cpu.yaml",
-          "diffusion_sdf.yaml": "diffusion_sdf_vae.yaml", "diffusion_sdf_tiny.yaml": "diffusion_sdf_vae_tiny.yaml"}
+          "diffusion_sdf.yaml": "diffusion_sdf_vae.yaml", "diffusion_sdf_tiny.yaml": "diffusion_sdf_vae_tiny.yaml",
+          "radar_diffusion_medium.yaml": "sdf_vae_medium.yaml", "diffusion_sdf_medium.yaml": "diffusion_sdf_vae_medium.yaml"}
 
 
 def model_class(spec: dict):

@@ -48,6 +48,7 @@ SUBSET_SIZE, SUBSET_SEED = 20, 0  # the paper's "20 random held-out meshes"
 
 MODEL_TITLES = {
     "radar2shape": "Radar2Shape",
+    "radar2shape_paper": "Radar2Shape, as in the paper",
     "diffusion_sdf": "Diffusion-SDF",
     "tmnet": "TMNet",
     "list": "LIST",

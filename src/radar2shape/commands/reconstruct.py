@@ -11,6 +11,8 @@ paper does with measured data. The checkpoint may be a :class:`RadarDiffusion` (
 roll-symmetric profile model (``ProfileUNetDiffusion``, ``InvRT``), which takes the aspect-only
 response directly. Everything about the radar (grid, dB floor and train statistics) comes from
 the :class:`~radar2shape.radar.spec.RadarSpec` stored in the checkpoint: no dataset is needed.
+Without ``--ckpt`` the model shipped in the package (``radar2shape.pretrained.DEFAULT_MODEL``) is
+used, and its path is printed.
 
 Every option, output path and input file is checked before the model runs (the marching-cubes
 grid against a memory limit too); a response with no measurement (every cell at the model's dB
@@ -34,6 +36,7 @@ import numpy as np
 from radar2shape.atomic import atomic_path, atomic_paths, check_output_path
 from radar2shape.errors import UserInputError
 from radar2shape.preflight import add_memory_option, check_input_file, check_memory, memory_limit_bytes
+from radar2shape.pretrained import DEFAULT_MODEL
 
 if TYPE_CHECKING:
     import torch
@@ -52,8 +55,9 @@ BYTES_PER_GRID_CELL = 24
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--ckpt", required=True, type=Path,
-                        help="RadarDiffusion or roll-symmetric profile model checkpoint (.ckpt)")
+    parser.add_argument("--ckpt", type=Path,
+                        help="RadarDiffusion or roll-symmetric profile model checkpoint (.ckpt); default: the "
+                        f"model shipped with radar2shape ({DEFAULT_MODEL}, radar2shape.pretrained.DEFAULT_MODEL)")
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--radar", type=Path, help="response .npz as written by 'radar2shape simulate'")
     source.add_argument("--measured", type=Path, nargs="+", metavar="FILE",
@@ -222,13 +226,14 @@ def _check_arguments(args: argparse.Namespace) -> list[Path]:
         if getattr(args, name) is not None:
             label = f"--{name.replace('_', '-')}"
             outputs[label] = check_output_path(getattr(args, name), label, suffixes)
-    inputs = [args.ckpt] + ([args.radar] if args.radar is not None else list(args.measured))
+    responses = [args.radar] if args.radar is not None else list(args.measured)
+    inputs = responses + ([args.ckpt] if args.ckpt is not None else [])  # the default model is no user path
     seen: dict[Path, str] = {Path(p).resolve(): "an input" for p in inputs}
     for label, path in outputs.items():
         other = seen.setdefault(path.resolve(), label)
         if other != label:
             raise UserInputError(f"{label}: {path} is also {other}; expected a separate output file")
-    for path in inputs[1:]:
+    for path in responses:
         check_input_file(path, "--radar" if args.radar is not None else "--measured", "a radar response file")
     return list(outputs.values())
 
@@ -257,10 +262,21 @@ def check_not_empty(grid: GridInput, spec: RadarSpec, name: str) -> None:
                              "no measurement (an all-zero response?); pass --allow-empty to reconstruct anyway")
 
 
+def _checkpoint_path(ckpt: Path | None) -> Path:
+    """``--ckpt`` when given; else the shipped default model, named on stdout so the user knows which ran."""
+    if ckpt is not None:
+        return ckpt
+    from radar2shape.pretrained import default_checkpoint
+
+    path = default_checkpoint()
+    print(f"model: {path} (the default shipped with radar2shape; pass --ckpt to use another)")
+    return path
+
+
 def main(args: argparse.Namespace) -> int:
     outputs = _check_arguments(args)
     memory_limit_bytes(args.memory_limit_gb)  # a bad limit is refused before the model loads
-    model = load_model(args.ckpt)
+    model = load_model(_checkpoint_path(args.ckpt))
     spec = model.radar_spec
     profile = is_profile_model(model)
     _check_options(args, model, profile)
