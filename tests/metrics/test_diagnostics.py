@@ -163,3 +163,26 @@ def test_take_and_standard_error():
     values = np.array([1.0, 2.0, 4.0])
     assert standard_error(values.std(), 3) == pytest.approx(values.std(ddof=1) / math.sqrt(3))
     assert math.isnan(standard_error(0.0, 1))
+
+
+class CountingStub(Stub):
+    """A lookup stub that says it ignores the radar; counts its reconstructions."""
+
+    reads_radar = False
+
+    def __init__(self):
+        super().__init__(lookup=True)
+        self.calls = 0
+
+    def reconstruct(self, batch):
+        self.calls += len(batch["index"])
+        return super().reconstruct(batch)
+
+
+def test_a_model_that_declares_it_ignores_the_radar_is_reconstructed_once(tmp_path):
+    """No swapped-radar pass for ``reads_radar = False`` (a Stage-1 autoencoder, the mean shape):
+    even a stub whose output would change with the radar gets no dependence row."""
+    model = CountingStub()
+    logged, _ = run(tmp_path, model, records(), 2)
+    assert model.calls == 3 and logged["test/iou_mean"] == 1.0
+    assert not any("radar_dependence" in key for key in logged)

@@ -220,7 +220,7 @@ class ReconstructionEvaluator(L.Callback):
                 ceiling = self._reconstruct(pl_module, scored, "reconstruct_ceiling")
                 for row, scores in zip(rows, self._score(ceiling, scored, index) if ceiling is not None else []):
                     row.update({CEILING + k: v for k, v in scores.items()})
-            if self.radar_dependence and "radar" in batch:
+            if self.radar_dependence and "radar" in batch and getattr(pl_module, "reads_radar", True):
                 self._swap(pl_module, scored, index, rows, split)
         self._rows[split] += rows
         if self.num_saved > 0:

@@ -56,11 +56,14 @@ class ReconstructionModel(L.LightningModule):
 
     Hyperparameters read here, with defaults for models that do not declare them: ``lr``,
     ``weight_decay``, ``lr_decay_steps`` (0: constant rate) and ``lr_decay`` (step factor).
-    ``optimizer_class`` picks Adam or AdamW per model.
+    ``optimizer_class`` picks Adam or AdamW per model. ``reads_radar = False`` marks a model whose
+    reconstruction ignores the radar (a Stage-1 autoencoder, the mean shape): its radar dependence
+    is zero by construction, so the evaluator does not spend a second reconstruction measuring it.
     """
 
     optimizer_class: type[torch.optim.Optimizer] = torch.optim.AdamW
     radar_spec: RadarSpec | None = None
+    reads_radar: bool = True
 
     # ---- what a model implements --------------------------------------------------------------
     def losses(self, batch: dict) -> dict[str, torch.Tensor]:

@@ -132,6 +132,8 @@ class MeanShapeReference(_Reference):
     from a per-point histogram, so memory does not grow with the number of shapes.
     """
 
+    reads_radar = False  # one mesh for every input
+
     BINS = 65  # histogram bins over [-1, 1] voxel: quantile resolution 1/32 voxel
 
     def __init__(self, resolution: int = 48, bound: float = 0.55, level: float = 0.5) -> None:

@@ -91,6 +91,7 @@ class SDFVAE(ReconstructionModel):
     """
 
     optimizer_class = torch.optim.Adam
+    reads_radar = False  # it encodes surface points: the Stage-1 ceiling, not a radar model
 
     def __init__(
         self,

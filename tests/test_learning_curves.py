@@ -1,0 +1,60 @@
+"""scripts/learning_curves.py: validation curves read from hand-written Lightning CSV logs."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+spec = importlib.util.spec_from_file_location("learning_curves", REPO / "scripts" / "learning_curves.py")
+learning_curves = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(learning_curves)
+
+# Lightning's CSV logger: step rows (train/loss_step), epoch rows (train/loss_epoch), validation rows.
+LOG = """epoch,step,train/loss_epoch,train/loss_step,val/iou_mean
+0,19,,0.5,
+0,62,0.40,,
+1,79,,0.3,
+1,125,,,0.25
+1,125,0.20,,
+2,188,0.10,,
+3,251,,,0.55
+3,251,0.05,,
+"""
+
+
+def write_run(root: Path, name: str, text: str) -> None:
+    folder = root / name / "fit" / "version_0"
+    folder.mkdir(parents=True)
+    (folder / "metrics.csv").write_text(text)
+
+
+def test_curve_pairs_each_validation_with_its_epoch_loss(tmp_path):
+    write_run(tmp_path, "a", LOG)
+    curve = learning_curves.read_curve(tmp_path / "a/fit/version_0/metrics.csv", "val/iou_mean")
+    assert [(p["epoch"], p["step"], p["value"], p["loss"]) for p in curve] == [(1, 125, 0.25, 0.20), (3, 251, 0.55, 0.05)]
+
+
+def test_grid_report_lists_fitted_runs_only(tmp_path, monkeypatch):
+    runs = tmp_path / "runs"
+    write_run(runs, "stage1", LOG)
+    write_run(runs, "noval", "epoch,step,train/loss_epoch\n0,62,0.4\n")
+    grid = tmp_path / "g.yaml"
+    grid.write_text(f"out_dir: {runs}\nruns:\n  - {{name: stage1}}\n  - {{name: noval}}\n"
+                    "  - {name: ref, command: test}\n  - {name: missing}\n")
+    out = tmp_path / "out"
+    assert learning_curves.main(["--grid", str(grid), "--out", str(out)]) == 0
+    text = (out / "learning_curves.md").read_text()
+    assert "| 3 | 251 | 0.5500 | 0.05 |" in text
+    assert "## noval" in text and "no `val/iou_mean` logged" in text
+    assert "## ref" not in text and "## missing" not in text
+    assert (out / "learning_curves.png").stat().st_size > 0
+
+
+def test_no_logs_is_one_error_line(tmp_path, capsys):
+    grid = tmp_path / "g.yaml"
+    grid.write_text(f"out_dir: {tmp_path / 'runs'}\nruns:\n  - {{name: a}}\n")
+    assert learning_curves.main(["--grid", str(grid), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:")
+    assert not (tmp_path / "o").exists()
