@@ -77,6 +77,18 @@ def test_report_writes_table1_layout_csv_and_figure(grid, tmp_path):
     assert "![table1_full](table1_full.png)" in text
 
 
+def test_table1_lists_first_stages_scored_on_the_test_split(grid, tmp_path):
+    stage1 = Path(yaml.safe_load(grid.read_text())["out_dir"]) / "radar2shape_stage1"
+    (stage1 / "metrics.json").write_text(json.dumps({
+        "chamfer_l2_x1e3_mean": 0.63, "chamfer_l2_x1e3_std": 0.2, "iou_mean": 0.717, "iou_std": 0.16,
+        "fscore_1pct_mean": 0.622, "fscore_1pct_std": 0.1, "iou_count": 100, "num_shapes": 100}))
+    out = tmp_path / "report"
+    assert cli.main(["report", "--grid", str(grid), "--out", str(out)]) == 0
+    section = (out / "table1.md").read_text().split("### First stages on the test split")[1].split("###")[0]
+    row = next(line for line in section.splitlines() if line.startswith("| radar2shape_stage1"))
+    assert "0.63 ± 0.20" in row and "0.717 ± 0.160" in row and "0.622 ± 0.100" in row and "100 of 100" in row
+
+
 REPO = Path(__file__).resolve().parents[1]
 
 
