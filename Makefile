@@ -14,7 +14,7 @@ DATA_DIR ?= data/parts
 WORKERS ?= 2
 
 .DEFAULT_GOAL := help
-.PHONY: help install test test-full demo data fit test-model sweep report monocone bench clean
+.PHONY: help install test test-full demo data fit test-model sweep report monocone default-model bench clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*## "}; {printf "  %-12s %s\n", $$1, $$2}'
@@ -55,6 +55,9 @@ report: install ## Collect finished runs into the grid's report layout: make rep
 monocone: install ## Zero-shot monocone experiment on simulated measurements -> reports/monocone/ (needs runs/rollsym and a Radar2Shape Stage 2)
 	$(PY) scripts/monocone_experiment.py --table1-dir runs/table1
 	$(VENV)/bin/radar2shape report --grid monocone
+
+default-model: install ## Export Radar2Shape of table1-medium (full, seed 0) as the model reconstruct uses without --ckpt
+	$(PY) scripts/export_default_model.py --ckpt runs/table1-medium/radar2shape-full-seed0/fit/version_0/checkpoints/last.ckpt
 
 bench: install ## Run the speed benchmarks under bench/
 	@for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

@@ -11,6 +11,7 @@ from __future__ import annotations
 import fnmatch
 import importlib.util
 import tomllib
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -20,7 +21,7 @@ import trimesh
 import yaml
 
 import radar2shape.pretrained as pretrained
-from conftest import REPO_ROOT
+REPO_ROOT = Path(__file__).resolve().parents[1]
 from models.test_radar_diffusion import (  # noqa: F401  (single_thread: the module's fixture)
     GRID,
     RadarStub,
