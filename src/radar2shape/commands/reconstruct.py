@@ -36,7 +36,7 @@ import numpy as np
 from radar2shape.atomic import atomic_path, atomic_paths, check_output_path
 from radar2shape.errors import UserInputError
 from radar2shape.preflight import add_memory_option, check_input_file, check_memory, memory_limit_bytes
-from radar2shape.pretrained import DEFAULT_MODEL
+from radar2shape.pretrained import DEFAULT_MODEL, RADAR_DIFFUSION, RADAR_SPEC_KEY
 
 if TYPE_CHECKING:
     import torch
@@ -44,8 +44,6 @@ if TYPE_CHECKING:
     from radar2shape.radar.measured import GridInput
     from radar2shape.radar.spec import RadarSpec
 
-RADAR_DIFFUSION = "radar2shape.models.radar_diffusion.RadarDiffusion"
-RADAR_SPEC_KEY = "radar_spec"  # = models.base.RADAR_SPEC_KEY (not imported: it needs Lightning)
 FORMATS = ("austin", "csv", "npz")  # = radar.measured.FORMATS
 MIN_OVERLAP = 0.5  # = radar.measured.MIN_OVERLAP
 MESH_OUT_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb")  # = geometry.mesh_io.WRITE_SUFFIXES
