@@ -14,7 +14,7 @@ DATA_DIR ?= data/parts
 WORKERS ?= 2
 
 .DEFAULT_GOAL := help
-.PHONY: help install test test-full demo data fit test-model sweep report monocone default-model bench clean
+.PHONY: help install test test-full demo data fit test-model sweep report monocone default-model validation bench clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*## "}; {printf "  %-12s %s\n", $$1, $$2}'
@@ -58,6 +58,9 @@ monocone: install ## Zero-shot monocone experiment on simulated measurements -> 
 
 default-model: install ## Export Radar2Shape of table1-medium (full, seed 0) as the model reconstruct uses without --ckpt
 	$(PY) scripts/export_default_model.py --ckpt runs/table1-medium/radar2shape-full-seed0/fit/version_0/checkpoints/last.ckpt
+
+validation: install ## PO and PO + edge currents against the Austin RCS suite in ../shared/validation -> reports/radar/validation.md
+	$(PY) -m radar2shape.radar.validation --out reports/radar/validation.md
 
 bench: install ## Run the speed benchmarks under bench/
 	@for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

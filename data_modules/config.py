@@ -15,6 +15,7 @@ and other working directories work).
 from __future__ import annotations
 
 import inspect
+import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Optional
@@ -37,6 +38,7 @@ class SimulatorOptions:
     shadowing: Optional[bool] = None
     polarization: Optional[str] = None  # "VV" (default), "HH", "HV" or "VH": records hold one channel
     edge_threshold_deg: Optional[float] = None  # +ec methods: sharp-edge normal turn in degrees
+    edge_krho: Optional[float] = None  # +ec methods: rounded edges count while k * radius <= this (0: none)
 
 
 @dataclass
@@ -95,6 +97,8 @@ class BuildConfig:
         if options.edge_threshold_deg is not None and not 0.0 < options.edge_threshold_deg <= 180.0:
             raise UserInputError(f"simulator.edge_threshold_deg: expected degrees in (0, 180], "
                                  f"got {options.edge_threshold_deg!r}")
+        if options.edge_krho is not None and not (math.isfinite(options.edge_krho) and options.edge_krho >= 0.0):
+            raise UserInputError(f"simulator.edge_krho: expected a number >= 0, got {options.edge_krho!r}")
         try:
             RadarGrid.from_config(self.radar)
         except UserInputError as err:

@@ -121,7 +121,8 @@ def test_box_edges_match_right_angle_wedge_gtd(aspect_deg):
 
 def test_smooth_bodies_get_no_edges():
     """A level-3 icosphere (normals turn 5.8 deg), a level-2 one (11.4 deg) and the 9k-face almond
-    (at most 20.5 deg) have no edge above the 30 deg threshold: PO + EC is PO, to the bit."""
+    (at most 20.5 deg) have no edge above the 30 deg threshold: PO + EC is PO, to the bit (the
+    spheres' radius, k rho >= 17, is far from rounded-edge size)."""
     for mesh in (trimesh.creation.icosphere(3, radius=0.1), trimesh.creation.icosphere(2, radius=0.1),
                  nasa_almond(n_around=64, n_back=24, n_front=48)):
         assert edges.sharp_edges(facet_mesh(mesh)).n_edges == 0
@@ -130,6 +131,39 @@ def test_smooth_bodies_get_no_edges():
     po = simulate(mesh, a, p, [8e9, 12e9], polarization="all")
     ec = simulate(mesh, a, p, [8e9, 12e9], method="po+ec", polarization="all")
     assert np.array_equal(po, ec)
+    almond = nasa_almond(n_around=64, n_back=24, n_front=48)
+    po = simulate(almond, [np.pi / 2], p, [7e9], polarization="all")
+    assert np.array_equal(po, simulate(almond, [np.pi / 2], p, [7e9], method="po+ec", polarization="all", edge_krho=0))
+
+
+def test_rounded_edge_radius_of_a_prism():
+    """A 24-sided prism inscribed in a cylinder of radius a: every side edge turns by 15 deg, and
+    the circle through it and its two opposite vertices is the cylinder's: radius a exactly."""
+    a, sides = 0.05, 24
+    prism = facet_mesh(trimesh.creation.cylinder(radius=a, height=0.3, sections=sides))
+    expected = a
+    assert edges.sharp_edges(prism).n_edges == 2 * sides  # the two rims only (90 deg)
+    rounded = edges.sharp_edges(prism, max_radius=1.01 * a)
+    side = rounded.radius > 0
+    assert side.sum() == sides and np.allclose(rounded.radius[side], expected, rtol=1e-9)
+    assert np.allclose(np.abs(rounded.tangents[side, 2]), 1.0)  # the side edges run along the axis
+    assert edges.sharp_edges(prism, max_radius=0.99 * expected).n_edges == 2 * sides
+
+
+def test_rounded_edges_count_per_frequency():
+    """A band simulated at once equals each frequency simulated alone: a rounded edge counts at
+    exactly the wavenumbers where k rho <= edge_krho, whatever else is in the band."""
+    almond = nasa_almond(n_around=32, n_back=12, n_front=24)
+    freq = np.linspace(2e9, 12e9, 11)  # the rim's k rho crosses 1 inside the band
+    ed = edges.EdgeDiffraction(facet_mesh(almond), krho=1.0, k_min=wavenumbers(freq).min())
+    assert len(ed.runs(wavenumbers(freq))) > 2
+    phi = np.radians([0, 30, 90, 150])
+    band = simulate(almond, [np.pi / 2], phi, freq, method="po+ec", polarization="all", dtype=np.complex128)
+    for i, f in enumerate(freq):
+        alone = simulate(almond, [np.pi / 2], phi, [f], method="po+ec", polarization="all", dtype=np.complex128)
+        assert np.abs(band[:, :, i] - alone[:, :, 0]).max() < 1e-9 * np.abs(band).max()
+    po = simulate(almond, [np.pi / 2], phi, freq, polarization="all", dtype=np.complex128)
+    assert np.abs(band - po).max() > 1e-2 * np.abs(po).max()  # the rim does diffract
 
 
 def test_sharp_edge_extraction():

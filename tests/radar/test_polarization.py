@@ -89,6 +89,9 @@ def test_bad_polarization_and_method():
         simulate(mesh, [0.0], [0.0], [1e9], method="po+sbr")
     with pytest.raises(UserInputError, match="edge_threshold_deg"):
         simulate(mesh, [0.0], [0.0], [1e9], method="po+ec", edge_threshold_deg=0.0)
+    for bad in (-0.5, float("nan"), "x"):
+        with pytest.raises(UserInputError, match="edge_krho"):
+            simulate(mesh, [0.0], [0.0], [1e9], method="po+ec", edge_krho=bad)
 
 
 def test_file_round_trip_and_old_files(tmp_path):

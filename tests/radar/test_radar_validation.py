@@ -79,10 +79,48 @@ def test_plate_iia_with_edge_currents(shared_validation, tag, width_in, normal, 
         assert abs(ec[0] - cut.rcs_db[0]) < 0.3  # broadside stays PO's
 
 
-def test_almond_edge_currents_change_nothing(shared_validation):
-    """The almond is smooth (facet normals turn at most 20.5 deg on this mesh): no sharp edge,
-    so PO + EC is PO, and no cut gets worse."""
-    cuts = [c for c in almond_cuts(shared_validation, freq_ghz=7.0) if c.name.startswith("meas.m1")]
+# PO + EC on the almond: its thin rim (radius ~ lambda / 8 at 7 GHz) is a rounded edge, lit by the
+# default edge_krho = 1. Measured on this mesh at 7 GHz: HH 3.39-3.57, VV 2.19-2.38 (PO: HH 7.45-8.06,
+# VV 4.70-5.27); docs/radar.md has every file.
+ALMOND_EC_LIMIT = {"H": 3.8, "V": 2.6}
+
+
+def test_almond_edge_currents_at_7ghz(shared_validation):
+    cuts = almond_cuts(shared_validation, freq_ghz=7.0)
     almond = nasa_almond(**ALMOND)
     for cut, po, ec in zip(cuts, simulate_cuts(almond, cuts), simulate_cuts(almond, cuts, "po+ec")):
-        assert np.array_equal(po, ec), cut.name
+        err_po, err_ec = avg_err_db(po, cut.rcs_db), avg_err_db(ec, cut.rcs_db)
+        assert err_ec < ALMOND_EC_LIMIT[polarisation(cut.name)], cut.name
+        assert err_ec < err_po - 2.0, cut.name  # measured: 2.3-4.5 dB better than PO
+    # edge_krho = 0 keeps only edges sharp by the 30 deg rule, of which the almond has none.
+    assert all(np.array_equal(po, ec) for po, ec in zip(simulate_cuts(almond, cuts[:2]),
+                                                        simulate_cuts(almond, cuts[:2], "po+ec", edge_krho=0)))
+
+
+def test_almond_rounded_edges_converge_with_the_mesh(shared_validation):
+    """The rim's fringe terms are a sum over many small turns: on a mesh with twice the facets
+    around (9k -> 37k faces) the errors move by under 0.2 dB (measured <= 0.11)."""
+    cuts = [c for c in almond_cuts(shared_validation, freq_ghz=7.0) if c.name.startswith("meas.m1")]
+    coarse = simulate_cuts(nasa_almond(**ALMOND), cuts, "po+ec")
+    fine = simulate_cuts(nasa_almond(n_around=128, n_back=48, n_front=96), cuts, "po+ec")
+    for cut, a, b in zip(cuts, coarse, fine):
+        assert abs(avg_err_db(a, cut.rcs_db) - avg_err_db(b, cut.rcs_db)) < 0.2, cut.name
+
+
+@pytest.mark.slow
+def test_almond_edge_currents_every_file(shared_validation):
+    """No file, at any frequency, is worse with edge currents than with PO alone."""
+    cuts = almond_cuts(shared_validation)
+    almond = nasa_almond(**ALMOND)
+    for cut, po, ec in zip(cuts, simulate_cuts(almond, cuts), simulate_cuts(almond, cuts, "po+ec")):
+        assert avg_err_db(ec, cut.rcs_db) < avg_err_db(po, cut.rcs_db) - 1.0, cut.name
+
+
+def test_validation_command_names_a_missing_folder(tmp_path, capsys):
+    from radar2shape.radar.validation import main
+
+    with pytest.raises(SystemExit) as stop:
+        main([str(tmp_path / "nowhere"), "--out", str(tmp_path / "v.md")])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and err.count("\n") == 1 and "nowhere: expected the validation folder" in err
+    assert not (tmp_path / "v.md").exists()

@@ -16,9 +16,12 @@ and hard (H along the edge) fringe coefficients. The sinc is the exact integral 
 phase along the edge, so everything is vectorised over edges, directions and frequencies.
 
 Sharp edges: two faces whose normals turn by at least ``threshold_deg`` (default 30 deg), plus
-open boundary edges (one face: a half-plane). Edges of more than two faces (the diagonal of a
-double-sided plate, T-junctions) and concave edges (outside wedge angle below pi, where
-multiple reflections rule: SBR's part) carry no fringe current.
+open boundary edges (one face: a half-plane). Rounded edges: at wavenumber k, a convex edge whose
+radius of curvature across it (read through the two opposite vertices) is at most ``krho`` / k
+(default 1: under a radian of phase per radius, a rim the wave cannot resolve) also carries its
+fringe current, at that frequency only. Edges of more than two
+faces (the diagonal of a double-sided plate, T-junctions) and concave edges (outside wedge angle
+below pi, where multiple reflections rule: SBR's part) carry no fringe current.
 """
 
 from __future__ import annotations
@@ -38,6 +41,10 @@ from radar2shape.radar.facets import FacetMesh
 # smooth and carries no fringe current, whose sum there would be a faceting artefact
 # (docs/radar.md, "Which edges").
 SHARP_EDGE_DEG = 30.0
+# k rho below which a smoothly rounded convex edge diffracts like a wedge: a rim of radius rho <
+# lambda / (2 pi) is not resolved by the wave. The fringe terms of the many small turns across such
+# a rim sum to a mesh-independent value as the mesh is refined (docs/radar.md, "Rounded edges").
+ROUNDED_EDGE_KRHO = 1.0
 # Polarisation letters: V = theta-hat of u, H = phi-hat. First letter transmit, second receive.
 POLARIZATIONS = ("VV", "HH", "HV", "VH")
 ALL_POLARIZATIONS = ("VV", "VH", "HV", "HH")  # reshape(..., 2, 2) -> [transmit, receive], V = 0, H = 1
@@ -70,6 +77,7 @@ class EdgeSet:
     wedge: np.ndarray  # [E] outside wedge angle / pi, in [1, 2] (2: half-plane)
     faces: np.ndarray  # [E, 2] facet indices (face 1 = face 0 for a one-sided boundary edge)
     one_sided: np.ndarray  # [E] bool: boundary of a one-sided sheet, lit (like its PO) from face 0's side only
+    radius: np.ndarray  # [E] radius of curvature across a rounded edge (m); 0 for sharp and boundary edges
 
     @property
     def n_edges(self) -> int:
@@ -84,6 +92,17 @@ def check_threshold(threshold_deg) -> float:
         raise UserInputError(f"edge_threshold_deg: expected degrees in (0, 180], got {threshold_deg!r}") from None
     if not (0.0 < value <= 180.0):
         raise UserInputError(f"edge_threshold_deg: expected degrees in (0, 180], got {threshold_deg!r}")
+    return value
+
+
+def check_krho(krho) -> float:
+    """The rounded-edge limit k rho, >= 0 (0: only edges sharp by the normal-turn threshold)."""
+    try:
+        value = float(krho)
+    except (TypeError, ValueError):
+        raise UserInputError(f"edge_krho: expected a number >= 0, got {krho!r}") from None
+    if not (np.isfinite(value) and value >= 0.0):
+        raise UserInputError(f"edge_krho: expected a number >= 0, got {krho!r}")
     return value
 
 
@@ -106,8 +125,22 @@ def _edge_faces(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return unique, counts, np.stack([first, second], axis=1)
 
 
-def sharp_edges(facets: FacetMesh, threshold_deg: float = SHARP_EDGE_DEG) -> EdgeSet:
-    """The mesh's convex sharp edges and open boundary edges as wedges (see the module notes)."""
+def _hinge_radius(facets: FacetMesh, unique: np.ndarray, pair: np.ndarray, tangents: np.ndarray,
+                  turn: np.ndarray) -> np.ndarray:
+    """Radius of the circle through the edge and the two opposite vertices, seen along the edge:
+    |P0 - P1| / (2 sin turn) with P0, P1 the opposite vertices projected across the edge. Exact
+    for a strip of a cylinder (any triangulation of its quads); on a sphere, whose edges sit inside
+    it by their sag, it reads 1.5 x the radius (so it errs toward fewer rounded edges)."""
+    opposite = facets.faces[pair].sum(axis=2) - unique.sum(axis=1)[:, None]  # [U, 2] vertex ids
+    chord = facets.vertices[opposite[:, 1]] - facets.vertices[opposite[:, 0]]
+    chord -= np.einsum("ij,ij->i", chord, tangents)[:, None] * tangents
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(turn > ANGLE_TOL, np.linalg.norm(chord, axis=1) / (2.0 * np.sin(turn)), np.inf)
+
+
+def sharp_edges(facets: FacetMesh, threshold_deg: float = SHARP_EDGE_DEG, max_radius: float = 0.0) -> EdgeSet:
+    """The mesh's convex sharp edges, open boundary edges and (with ``max_radius`` > 0) the convex
+    rounded edges of radius of curvature at most ``max_radius`` metres, as wedges (module notes)."""
     threshold = np.radians(check_threshold(threshold_deg))
     unique, counts, pair = _edge_faces(facets.faces)
     keep = counts <= 2
@@ -128,7 +161,11 @@ def sharp_edges(facets: FacetMesh, threshold_deg: float = SHARP_EDGE_DEG) -> Edg
     outside = np.where(outside < ANGLE_TOL, outside + 2.0 * np.pi, outside)  # a1 = a0: a sheet, 2 pi
     outside[one_sided] = 2.0 * np.pi
     turn = np.arccos(np.clip(np.einsum("ij,ij->i", n0, n1), -1.0, 1.0))
-    sharp = one_sided | ((turn >= threshold) & (outside >= np.pi + threshold - 1e-9))
+    by_turn = (turn >= threshold) & (outside >= np.pi + threshold - 1e-9)
+    radius = _hinge_radius(facets, unique, pair, tangents, turn)
+    rounded = ~by_turn & (outside > np.pi + ANGLE_TOL) & (radius <= max_radius)
+    sharp = one_sided | by_turn | rounded
+    radius = np.where(rounded, radius, 0.0)
     return EdgeSet(
         centres=((r0 + r1) / 2.0)[sharp],
         tangents=tangents[sharp],
@@ -138,6 +175,7 @@ def sharp_edges(facets: FacetMesh, threshold_deg: float = SHARP_EDGE_DEG) -> Edg
         wedge=np.clip(outside[sharp] / np.pi, 1.0, 2.0),
         faces=pair[sharp],
         one_sided=one_sided[sharp],
+        radius=radius[sharp],
     )
 
 
@@ -349,10 +387,14 @@ def edge_sum(edges: EdgeSet, u: np.ndarray, amp: np.ndarray, k: np.ndarray, real
 
 
 class EdgeDiffraction:
-    """The fringe response of one mesh's sharp edges, chunk by chunk of directions."""
+    """The fringe response of one mesh's sharp (and rounded) edges, chunk by chunk of directions."""
 
-    def __init__(self, facets: FacetMesh, threshold_deg: float = SHARP_EDGE_DEG, scene=None):
-        self.edges = sharp_edges(facets, threshold_deg)
+    def __init__(self, facets: FacetMesh, threshold_deg: float = SHARP_EDGE_DEG, scene=None,
+                 krho: float = ROUNDED_EDGE_KRHO, k_min: float = np.inf):
+        """``krho`` and ``k_min`` (the lowest wavenumber simulated) bound the rounded edges kept."""
+        self.krho = krho
+        max_radius = krho / k_min if krho > 0 and k_min > 0 else 0.0
+        self.edges = sharp_edges(facets, threshold_deg, max_radius)
         self.scene = scene
         self.offset = EDGE_RAY_OFFSET * float(np.linalg.norm(np.ptp(facets.vertices, axis=0)))
 
@@ -362,6 +404,17 @@ class EdgeDiffraction:
         lit = visible(self.edges, u, phi, outside, self.scene, self.offset)
         return amplitudes(self.edges, u, phi, lit, polarizations)
 
+    def runs(self, k: np.ndarray) -> list[tuple[slice, np.ndarray]]:
+        """Consecutive runs of ``k`` over which the same edges count, with those edges' mask [E]:
+        a rounded edge counts at k while k * radius <= krho (sharp ones everywhere)."""
+        radius = self.edges.radius
+        if not (radius > 0).any():
+            return [(slice(0, len(k)), np.ones(len(radius), dtype=bool))]
+        active = np.abs(k)[:, None] * radius[None, :] <= self.krho  # [N, E]
+        change = np.flatnonzero((active[1:] != active[:-1]).any(axis=1)) + 1
+        bounds = np.concatenate([[0], change, [len(k)]])
+        return [(slice(a, b), active[a]) for a, b in zip(bounds[:-1], bounds[1:])]
+
     def response(self, u: np.ndarray, k: np.ndarray, polarizations: tuple[str, ...], blocks: list[slice],
                  real_dtype=np.float32) -> np.ndarray:
         """Fringe response [D, N, P] (local-origin phase) of the directions u at wavenumbers k."""
@@ -370,5 +423,8 @@ class EdgeDiffraction:
             return out
         amp = self.amplitudes(u, polarizations)
         for block in blocks:
-            out[:, block] = edge_sum(self.edges, u, amp, k[block], real_dtype)
+            for run, mask in self.runs(k[block]):
+                part = slice(block.start + run.start, block.start + run.stop)
+                weights = amp if mask.all() else amp * mask[None, :, None]
+                out[:, part] = edge_sum(self.edges, u, weights, k[part], real_dtype)
         return out

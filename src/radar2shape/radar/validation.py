@@ -4,7 +4,8 @@ Each data file holds rows (frequency Hz, theta deg, phi deg, RCS dBsm) for one f
 polarisation (``.H.`` = HH, phi-hat; ``.V.`` = VV, theta-hat); ``radar.measured.read_austin``
 parses them (checked rows, named errors). The suite's error measure: with TH = max(ref_dB) - 80,
 avg_err_dB = mean over phi of |max(sim_dB, TH) - max(ref_dB, TH)|.
-Run ``python -m radar2shape.radar.validation [DIR]`` for the tables in docs/radar.md.
+Run ``python -m radar2shape.radar.validation [DIR] [--out FILE]`` for the tables in docs/radar.md
+(``make validation`` writes reports/radar/validation.md).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from radar2shape.atomic import write_text_atomic
 from radar2shape.errors import UserInputError
 from radar2shape.geometry.almond import ALMOND_LENGTH_M, nasa_almond
 from radar2shape.radar.measured import read_austin
@@ -72,9 +74,9 @@ def sector_err_db(sim_db: np.ndarray, cut: Cut, centre_deg: float = 90.0, half_d
     return float(np.mean(np.abs(sim_db - cut.rcs_db)[sector]))
 
 
-def simulate_cuts(mesh, cuts: list[Cut], method: str = "po") -> list[np.ndarray]:
+def simulate_cuts(mesh, cuts: list[Cut], method: str = "po", **options) -> list[np.ndarray]:
     """RCS in dBsm along each cut in its own polarisation; cuts sharing a frequency and theta
-    share one simulation (both polarisations at once)."""
+    share one simulation (both polarisations at once). ``options`` go to ``simulate``."""
     out: list[np.ndarray | None] = [None] * len(cuts)
     groups: dict[tuple[float, float], list[int]] = {}
     for i, cut in enumerate(cuts):
@@ -82,7 +84,7 @@ def simulate_cuts(mesh, cuts: list[Cut], method: str = "po") -> list[np.ndarray]
     for (freq, theta), members in groups.items():
         phi = np.unique(np.concatenate([cuts[i].phi_rad for i in members]))
         names = tuple(sorted({cuts[i].polarization for i in members}))
-        response = simulate(mesh, [theta], phi, [freq], method=method, polarization=names)[0, :, 0]
+        response = simulate(mesh, [theta], phi, [freq], method=method, polarization=names, **options)[0, :, 0]
         rcs_db = to_db(response, floor_db=-200.0)  # [phi, polarisation]
         for i in members:
             out[i] = rcs_db[np.searchsorted(phi, cuts[i].phi_rad), names.index(cuts[i].polarization)]
@@ -107,11 +109,11 @@ def almond_cuts(folder: Path, freq_ghz: float | None = None) -> list[Cut]:
 
 
 def almond_table(folder: Path, mesh: trimesh.Trimesh | None = None, freq_ghz: float | None = None,
-                 method: str = "po") -> list[tuple[str, float, float, float]]:
+                 method: str = "po", **options) -> list[tuple[str, float, float, float]]:
     """(file, GHz for the 9.936 in almond, avg_err_dB, broadside 60-120 deg error) per almond file."""
     mesh = nasa_almond(ALMOND_LENGTH_M) if mesh is None else mesh
     cuts = almond_cuts(folder, freq_ghz)
-    sims = simulate_cuts(mesh, cuts, method)
+    sims = simulate_cuts(mesh, cuts, method, **options)
     return [(cut.name, cut.freq_hz / 1e9, avg_err_db(sim, cut.rcs_db), sector_err_db(sim, cut))
             for cut, sim in zip(cuts, sims)]
 
@@ -143,19 +145,39 @@ def plate_table(folder: Path, method: str = "po") -> list[tuple[str, float, floa
     return rows
 
 
+def tables(folder: Path) -> str:
+    """The almond and plate tables (PO beside PO + EC) as markdown, for docs/radar.md."""
+    lines = ["# PO and PO + edge currents against the Austin RCS Benchmark Suite", "",
+             "Written by `python -m radar2shape.radar.validation --out FILE` (`make validation`).", "",
+             f"## NASA almond ({nasa_almond(ALMOND_LENGTH_M).faces.shape[0]:,} faces), theta = 90 deg, "
+             "phi = 0..180 deg (0 = nose-on)", "",
+             "| file | f (GHz) | avg_err_dB PO | avg_err_dB PO+EC | broadside PO | broadside PO+EC |",
+             "|---|---|---|---|---|---|"]
+    po, ec = almond_table(folder), almond_table(folder, method="po+ec")
+    for (name, freq, err, sector), (_, _, err_ec, sector_ec) in zip(po, ec):
+        lines.append(f"| {name} | {freq:.3f} | {err:.2f} | {err_ec:.2f} | {sector:.2f} | {sector_ec:.2f} |")
+    lines += ["", "## Plate IIA (full-wave references)", "",
+              "| file | f (GHz) | avg_err_dB PO | avg_err_dB PO+EC | sim - reference at phi = 0, PO+EC (dB) |",
+              "|---|---|---|---|---|"]
+    po, ec = plate_table(folder), plate_table(folder, method="po+ec")
+    for (name, freq, err, _), (_, _, err_ec, offset_ec) in zip(po, ec):
+        lines.append(f"| {name} | {freq:.3f} | {err:.2f} | {err_ec:.2f} | {offset_ec:+.2f} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder", nargs="?", type=Path, default=default_dir())
+    parser.add_argument("--out", type=Path, help="write the tables to this markdown file (else print them)")
     args = parser.parse_args(argv)
-    po, ec = almond_table(args.folder), almond_table(args.folder, method="po+ec")
-    print("| file | f (GHz) | avg_err_dB PO | avg_err_dB PO+EC | broadside PO | broadside PO+EC |\n|---|---|---|---|---|---|")
-    for (name, freq, err, sector), (_, _, err_ec, sector_ec) in zip(po, ec):
-        print(f"| {name} | {freq:.3f} | {err:.2f} | {err_ec:.2f} | {sector:.2f} | {sector_ec:.2f} |")
-    po, ec = plate_table(args.folder), plate_table(args.folder, method="po+ec")
-    print("\n| file | f (GHz) | avg_err_dB PO | avg_err_dB PO+EC | sim - reference at phi = 0, PO+EC (dB) |"
-          "\n|---|---|---|---|---|")
-    for (name, freq, err, _), (_, _, err_ec, offset_ec) in zip(po, ec):
-        print(f"| {name} | {freq:.3f} | {err:.2f} | {err_ec:.2f} | {offset_ec:+.2f} |")
+    if not (args.folder / "austin-rcs").is_dir():
+        parser.exit(2, f"error: {args.folder}: expected the validation folder holding austin-rcs/\n")
+    text = tables(args.folder)
+    if args.out:
+        write_text_atomic(args.out, text)
+        print(f"wrote {args.out}")
+    else:
+        print(text, end="")
     return 0
 
 
