@@ -44,17 +44,18 @@ from radar2shape.radar.measured import write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
 # (row label, {setting: candidate checkpoints, first loadable wins}), paths relative to the repo. The
-# 3D row prefers the Table-1 runs, then this experiment's own Table-1-config runs (``make
+# 3D row prefers the medium Table-1 runs (seed 0), then the toy Table-1 runs, then this experiment's own Table-1-config runs (``make
 # monocone-models``), then the demo's Stage 2 (trained with 0-70 % masks, so it serves both
 # settings); the profile rows prefer the medium Table-2 runs (low noise, seed 0), then the tiny
 # grid's; runs written by older code that no longer loads are skipped.
+_TABLE1_MEDIUM = "runs/table1-medium/radar2shape-{}-seed0/fit/version_0/checkpoints/last.ckpt"
 _TABLE1 = "runs/table1/radar2shape-{}/fit/version_0/checkpoints/last.ckpt"
 _OWN = "runs/monocone/radar2shape-{}/fit/version_0/checkpoints/last.ckpt"
 _ROLLSYM_MEDIUM = "runs/rollsym-medium/{}-{}-low-seed0/fit/version_0/checkpoints/last.ckpt"
 _ROLLSYM = "runs/rollsym/{}-{}-medium/fit/version_0/checkpoints/epoch=59-step=720.ckpt"
 _DEMO = "runs/demo/stage2/fit/version_0/checkpoints/last.ckpt"
 MODELS = [  # (row of the monocone report layout, candidates); the row names the Table-1 cell folders too
-    ("radar2shape", {s: [_TABLE1.format(s), _OWN.format(s), _DEMO] for s in ("full", "partial")}),
+    ("radar2shape", {s: [_TABLE1_MEDIUM.format(s), _TABLE1.format(s), _OWN.format(s), _DEMO] for s in ("full", "partial")}),
     ("unet", {s: [_ROLLSYM_MEDIUM.format("unet", s), _ROLLSYM.format("unet", s)] for s in ("full", "partial")}),
     ("invrt", {s: [_ROLLSYM_MEDIUM.format("invrt", s), _ROLLSYM.format("invrt", s)] for s in ("full", "partial")}),
 ]
