@@ -156,7 +156,7 @@ def test_rounded_edges_count_per_frequency():
     almond = nasa_almond(n_around=32, n_back=12, n_front=24)
     freq = np.linspace(2e9, 12e9, 11)  # the rim's k rho crosses 1 inside the band
     ed = edges.EdgeDiffraction(facet_mesh(almond), krho=1.0, k_min=wavenumbers(freq).min())
-    assert len(ed.runs(wavenumbers(freq))) > 2
+    assert len(ed.groups(wavenumbers(freq))) > 2
     phi = np.radians([0, 30, 90, 150])
     band = simulate(almond, [np.pi / 2], phi, freq, method="po+ec", polarization="all", dtype=np.complex128)
     for i, f in enumerate(freq):

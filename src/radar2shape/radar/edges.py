@@ -27,7 +27,7 @@ below pi, where multiple reflections rule: SBR's part) carry no fringe current.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import scipy.sparse
@@ -82,6 +82,10 @@ class EdgeSet:
     @property
     def n_edges(self) -> int:
         return len(self.lengths)
+
+    def subset(self, keep: np.ndarray) -> "EdgeSet":
+        """The edges selected by a boolean mask or index array."""
+        return EdgeSet(**{f.name: getattr(self, f.name)[keep] for f in fields(self)})
 
 
 def check_threshold(threshold_deg) -> float:
@@ -404,16 +408,18 @@ class EdgeDiffraction:
         lit = visible(self.edges, u, phi, outside, self.scene, self.offset)
         return amplitudes(self.edges, u, phi, lit, polarizations)
 
-    def runs(self, k: np.ndarray) -> list[tuple[slice, np.ndarray]]:
-        """Consecutive runs of ``k`` over which the same edges count, with those edges' mask [E]:
-        a rounded edge counts at k while k * radius <= krho (sharp ones everywhere)."""
+    def groups(self, k: np.ndarray) -> list[tuple[slice, np.ndarray]]:
+        """The edges of one uniformly spaced block ``k`` grouped by the run of k at which they count,
+        as (run, edge mask [E]): a rounded edge counts while |k| radius <= krho, a contiguous run of
+        a monotone block; sharp edges count at every k. Each edge then goes through one sum."""
         radius = self.edges.radius
-        if not (radius > 0).any():
-            return [(slice(0, len(k)), np.ones(len(radius), dtype=bool))]
         active = np.abs(k)[:, None] * radius[None, :] <= self.krho  # [N, E]
-        change = np.flatnonzero((active[1:] != active[:-1]).any(axis=1)) + 1
-        bounds = np.concatenate([[0], change, [len(k)]])
-        return [(slice(a, b), active[a]) for a, b in zip(bounds[:-1], bounds[1:])]
+        count = active.sum(axis=0)
+        first = active.argmax(axis=0)
+        key = first * (len(k) + 1) + count  # >= 1 for an edge that counts somewhere, 0 otherwise
+        counted = np.flatnonzero(count > 0)
+        leaders = counted[np.unique(key[counted], return_index=True)[1]]
+        return [(slice(int(first[e]), int(first[e] + count[e])), key == key[e]) for e in leaders]
 
     def response(self, u: np.ndarray, k: np.ndarray, polarizations: tuple[str, ...], blocks: list[slice],
                  real_dtype=np.float32) -> np.ndarray:
@@ -423,8 +429,10 @@ class EdgeDiffraction:
             return out
         amp = self.amplitudes(u, polarizations)
         for block in blocks:
-            for run, mask in self.runs(k[block]):
+            for run, members in self.groups(k[block]):
                 part = slice(block.start + run.start, block.start + run.stop)
-                weights = amp if mask.all() else amp * mask[None, :, None]
-                out[:, part] = edge_sum(self.edges, u, weights, k[part], real_dtype)
+                if members.all():
+                    out[:, part] += edge_sum(self.edges, u, amp, k[part], real_dtype)
+                else:
+                    out[:, part] += edge_sum(self.edges.subset(members), u, amp[:, members], k[part], real_dtype)
         return out
