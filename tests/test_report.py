@@ -77,6 +77,16 @@ def test_report_writes_table1_layout_csv_and_figure(grid, tmp_path):
     assert "![table1_full](table1_full.png)" in text
 
 
+def test_figures_show_each_row_once_from_the_replicate_that_saved_most():
+    from radar2shape.reporting import Cell
+
+    names = ["radar2shape-full-seed0", "radar2shape-full-seed1", "radar2shape-full-seed2", "nearest-full"]
+    cells = [Cell(n, Path(n), "done") for n in names]
+    saved = {"radar2shape-full-seed0": 4, "radar2shape-full-seed1": 6, "radar2shape-full-seed2": 6, "nearest-full": 4}
+    chosen = report_layouts.one_replicate_per_row(cells, LAYOUTS["table1"], saved)
+    assert [c.name for c in chosen] == ["radar2shape-full-seed1", "nearest-full"]
+
+
 def test_table1_lists_first_stages_scored_on_the_test_split(grid, tmp_path):
     stage1 = Path(yaml.safe_load(grid.read_text())["out_dir"]) / "radar2shape_stage1"
     (stage1 / "metrics.json").write_text(json.dumps({

@@ -261,13 +261,26 @@ def _depth_axis(ax, points: np.ndarray | None, view=VIEW) -> None:
     ax.set_yticks([])
 
 
+def one_replicate_per_row(cells: list[Cell], layout: Layout, n_saved: dict[str, int]) -> list[Cell]:
+    """One cell per table row: of a row's seed replicates (``-seed<k>``), the one that saved the most
+    test reconstructions (the first on a tie), so that a figure shows each model once."""
+    best: dict[str, Cell] = {}
+    for c in cells:
+        row = layout.split(c.name)["row"]
+        if row not in best or n_saved[c.name] > n_saved[best[row].name]:
+            best[row] = c
+    return list(best.values())
+
+
 def model_rows_figure(cells: list[Cell], layout: Layout, path: Path, n_shapes: int, title: str) -> Path | None:
-    """Ground truth, then one row per model, for the first ``n_shapes`` test shapes the runs saved."""
+    """Ground truth, then one row per model, for the first ``n_shapes`` test shapes the runs saved
+    (seed replicates: see :func:`one_replicate_per_row`)."""
     from matplotlib.figure import Figure
 
     from radar2shape.metrics.render import VIEWS
 
     saved = {c.name: saved_reconstructions(c.run_dir) for c in cells}
+    cells = one_replicate_per_row(cells, layout, {name: len(found) for name, found in saved.items()})
     indices = sorted(set().union(*saved.values()))[:n_shapes] if saved else []
     if not indices:
         return None

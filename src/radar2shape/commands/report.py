@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import argparse
 
-FIGURE_SHAPES = 4
+FIGURE_SHAPES = 6
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
