@@ -57,7 +57,43 @@ def test_extract_mesh_evaluates_in_chunks_and_matches_the_grid_path():
         assert not torch.is_grad_enabled()
         return (points.norm(dim=-1) - 0.3).unsqueeze(-1)  # [M, 1] is accepted
 
-    mesh = extract_mesh(sdf_fn, resolution=24, batch_points=5000)
+    mesh = extract_mesh(sdf_fn, resolution=24, batch_points=5000, narrow_band=False)
     assert max(calls) == 5000 and sum(calls) == 24**3
     reference = sdf_grid_to_mesh(sphere_sdf(24, 0.3))
     assert np.allclose(mesh.vertices, reference.vertices, atol=1e-6)
+
+
+def _box(points: torch.Tensor, half=(0.3, 0.02, 0.2)) -> torch.Tensor:
+    q = points.abs() - torch.tensor(half, dtype=points.dtype)
+    return q.clamp(min=0).norm(dim=1) + q.max(dim=1).values.clamp(max=0)
+
+
+def _spheres(points: torch.Tensor) -> torch.Tensor:
+    centres = torch.tensor([[0.1, 0.1, 0.0], [-0.2, 0.0, 0.1], [0.25, -0.3, -0.2], [0.45, 0.45, 0.45]])
+    radii = torch.tensor([0.2, 0.1, 0.05, 0.12])  # the last one is cut by the grid: capped
+    return ((points[:, None] - centres[None]).norm(dim=2) - radii).min(dim=1).values
+
+
+def _with_nan(points: torch.Tensor) -> torch.Tensor:
+    values = _spheres(points)
+    return torch.where(points[:, 0] > 0.3, torch.full_like(values, float("nan")), values)
+
+
+@pytest.mark.parametrize("sdf_fn", [_box, _spheres, _with_nan], ids=["thin plate", "spheres", "nan region"])
+@pytest.mark.parametrize("resolution", [33, 64])
+def test_narrow_band_gives_the_full_grid_mesh_for_a_fraction_of_the_queries(sdf_fn, resolution):
+    """Only blocks near the surface are refined: the same vertices and faces as evaluating every
+    grid point (a 0.04-thick plate, spheres one of which the grid cuts, a NaN half-space)."""
+    count = []
+
+    def counted(points):
+        count.append(len(points))
+        return sdf_fn(points)
+
+    full = extract_mesh(sdf_fn, resolution, narrow_band=False)
+    band = extract_mesh(counted, resolution)
+    assert len(full.faces) > 100 and np.array_equal(full.faces, band.faces)
+    assert np.abs(full.vertices - band.vertices).max() < 1e-3 / (resolution - 1)  # caps: 1e-3 cell
+    # measured: 15-21 % of the points at 64^3, 52 % at 33^3; NaN points are always evaluated
+    limit = {33: 0.6, 64: 0.3}[resolution] + (0.15 if sdf_fn is _with_nan else 0.0)
+    assert sum(count) < limit * resolution**3
