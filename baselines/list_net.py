@@ -156,6 +156,7 @@ class LIST(ReconstructionModel):
             def sdf_fn(points: torch.Tensor, one=one) -> torch.Tensor:
                 return self.sdf(one, points.to(self.device, torch.float32)[None])[0]
 
-            mesh = extract_mesh(sdf_fn, hp.mesh_resolution, (-hp.mesh_bound, hp.mesh_bound), hp.mesh_batch_points, self.device)
+            mesh = extract_mesh(sdf_fn, hp.mesh_resolution, (-hp.mesh_bound, hp.mesh_bound), hp.mesh_batch_points,
+                                self.device, distance_limit=hp.truncation or None)
             recons.append(Reconstruction(mesh=mesh))
         return recons

@@ -97,3 +97,21 @@ def test_narrow_band_gives_the_full_grid_mesh_for_a_fraction_of_the_queries(sdf_
     # measured: 15-21 % of the points at 64^3, 52 % at 33^3; NaN points are always evaluated
     limit = {33: 0.6, 64: 0.3}[resolution] + (0.15 if sdf_fn is _with_nan else 0.0)
     assert sum(count) < limit * resolution**3
+
+
+def test_narrow_band_trusts_a_truncated_sdf_only_up_to_its_truncation():
+    """A model trained with a loss truncated at t only knows the sign beyond it; here (t = 0.05)
+    the far field overshoots twentyfold. A sphere of radius 0.03 in the middle of a coarse block is
+    then invisible from the block's corners (0.08 from its surface), unless the band is told where
+    the SDF stops being a distance."""
+    centre = torch.full((3,), -0.5 + 4.0 / 63)  # the middle of the first 8-cell block
+
+    def overshooting(points):
+        d = (points - centre).norm(dim=1) - 0.03
+        return torch.where(d.abs() < 0.05, d, torch.sign(d) * (0.05 + 20 * (d.abs() - 0.05)))
+
+    full = extract_mesh(overshooting, 64, narrow_band=False)
+    assert len(full.faces) > 50
+    assert len(extract_mesh(overshooting, 64).faces) == 0  # trusting the far field loses it
+    limited = extract_mesh(overshooting, 64, distance_limit=0.05)
+    assert np.array_equal(full.faces, limited.faces) and np.allclose(full.vertices, limited.vertices)

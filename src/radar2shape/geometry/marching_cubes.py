@@ -74,7 +74,8 @@ def _parents(fine: np.ndarray, coarse: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return np.minimum(lower, upper), upper
 
 
-def _narrow_band_grid(evaluate: Callable[[np.ndarray], np.ndarray], resolution: int, spacing: float) -> np.ndarray:
+def _narrow_band_grid(evaluate: Callable[[np.ndarray], np.ndarray], resolution: int, spacing: float,
+                      distance_limit: float | None = None) -> np.ndarray:
     """The SDF on the full grid, evaluated exactly only near the surface.
 
     Blocks of ``COARSEST_BLOCK`` cells are halved while one of their corners lies within
@@ -82,6 +83,8 @@ def _narrow_band_grid(evaluate: Callable[[np.ndarray], np.ndarray], resolution: 
     a block that stops early holds no surface (its corners are farther from the surface than any
     of its points), so its points get its corners' sign at the block's margin: the same signs, and
     so the same marching-cubes mesh, as evaluating every point, for a fraction of the queries.
+    An SDF learned with a truncated loss is a distance only up to the truncation
+    (``distance_limit``): blocks whose margin exceeds it are always refined.
     """
     sdf = np.full((resolution,) * 3, np.nan, dtype=np.float32)
     exact = np.zeros(sdf.shape, dtype=bool)
@@ -106,6 +109,8 @@ def _narrow_band_grid(evaluate: Callable[[np.ndarray], np.ndarray], resolution: 
         with np.errstate(invalid="ignore"):
             refine = (np.nan_to_num(np.abs(stacked), nan=0.0).min(axis=0) < margin)
             refine |= (stacked > 0).any(axis=0) & (stacked <= 0).any(axis=0)
+        if distance_limit is not None and margin > distance_limit:
+            refine[...] = True
         # Blocks that stop here: every point inside gets the corners' sign at the margin.
         known = ~np.isnan(stacked).any(axis=0)
         settled = known & ~refine & _reached(need, index)
@@ -152,11 +157,13 @@ def extract_mesh(
     batch_points: int = 65536,
     device: torch.device | str | None = None,
     narrow_band: bool = True,
+    distance_limit: float | None = None,
 ) -> trimesh.Trimesh:
     """Evaluate ``sdf_fn`` (``[M, 3] -> [M]`` or ``[M, 1]``) on the grid in chunks, then mesh it.
 
     With ``narrow_band`` (default) only the points near the surface are evaluated
-    (:func:`_narrow_band_grid`); the mesh is the one every point would give. Chunking bounds memory
+    (:func:`_narrow_band_grid`); the mesh is the one every point would give. ``distance_limit``:
+    the magnitude up to which ``sdf_fn`` is a distance (a model's loss truncation; None: everywhere). Chunking bounds memory
     for any resolution; ``device`` is where the query points are put (the model's device), results
     come back to the CPU per chunk.
     """
@@ -169,7 +176,7 @@ def extract_mesh(
 
     if narrow_band and resolution > COARSEST_BLOCK:
         spacing = (bounds[1] - bounds[0]) / (resolution - 1)
-        sdf = _narrow_band_grid(evaluate, resolution, spacing)
+        sdf = _narrow_band_grid(evaluate, resolution, spacing, distance_limit)
     else:
         full = np.stack(np.meshgrid(*(np.arange(resolution),) * 3, indexing="ij"), axis=-1).reshape(-1, 3)
         sdf = evaluate(full).reshape(resolution, resolution, resolution)

@@ -326,6 +326,7 @@ class RadarDiffusion(ReconstructionModel):
         mesh = extract_mesh(
             lambda p: sdf(p).mean(0), int(resolution or self.hparams.mesh_resolution), (-bound, bound),
             int(self.stage1.hparams.mesh_batch_points), self.device,
+            distance_limit=self.stage1.hparams.truncation or None,
         )
         if len(mesh.vertices) == 0:
             return mesh, np.zeros(0, dtype=np.float32)

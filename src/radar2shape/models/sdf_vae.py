@@ -155,7 +155,8 @@ class SDFVAE(ReconstructionModel):
             def sdf_fn(points: torch.Tensor, planes=planes) -> torch.Tensor:
                 return self.decoder.query(planes, points[None].to(planes[0].dtype))[0]
 
-            meshes.append(extract_mesh(sdf_fn, resolution, (-bound, bound), self.hparams.mesh_batch_points, self.device))
+            meshes.append(extract_mesh(sdf_fn, resolution, (-bound, bound), self.hparams.mesh_batch_points, self.device,
+                                       distance_limit=self.hparams.truncation or None))
         return meshes
 
     @torch.no_grad()
