@@ -83,7 +83,7 @@ def test_two_process_fit_and_test_equal_one_process(tmp_path):
     # written once, by rank zero, after gathering: the same files as one process, the same rows
     assert files(ddp_dir) == files(one_dir)
     test_files = files(ddp_dir / "version_0" / "reconstructions" / "test" / "epoch_000")
-    assert test_files == [f"sample_{i:06d}.{ext}" for i in range(4) for ext in ("obj", "png")] + ["scores.csv"]
+    assert test_files == [f"sample_{i:06d}.{ext}" for i in range(6) for ext in ("obj", "png")] + ["scores.csv"]  # num_saved: 6
     scores = [(ddp_dir if i == 0 else one_dir) / "version_0/reconstructions/test/epoch_000/scores.csv" for i in range(2)]
     ddp_rows, one_rows = (list(csv.DictReader(path.open())) for path in scores)
     assert [int(r["index"]) for r in ddp_rows] == list(range(16))
