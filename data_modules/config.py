@@ -15,7 +15,6 @@ and other working directories work).
 from __future__ import annotations
 
 import inspect
-import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Optional
@@ -60,6 +59,7 @@ class BuildConfig:
         """The checks types cannot express, so that a build fails before it writes anything."""
         from radar2shape.geometry.families import FAMILIES
         from radar2shape.radar import RadarGrid
+        from radar2shape.radar.edges import check_krho, check_threshold
 
         self.sampling = replace(self.sampling, sdf_near_sigmas=tuple(self.sampling.sdf_near_sigmas))
         if self.family not in FAMILIES:
@@ -94,11 +94,13 @@ class BuildConfig:
         if options.polarization not in (None, "VV", "HH", "HV", "VH"):
             raise UserInputError(f"simulator.polarization: expected 'VV', 'HH', 'HV' or 'VH' (one channel per "
                                  f"record), got {options.polarization!r}")
-        if options.edge_threshold_deg is not None and not 0.0 < options.edge_threshold_deg <= 180.0:
-            raise UserInputError(f"simulator.edge_threshold_deg: expected degrees in (0, 180], "
-                                 f"got {options.edge_threshold_deg!r}")
-        if options.edge_krho is not None and not (math.isfinite(options.edge_krho) and options.edge_krho >= 0.0):
-            raise UserInputError(f"simulator.edge_krho: expected a number >= 0, got {options.edge_krho!r}")
+        try:  # the simulator's own checks, named under this section
+            if options.edge_threshold_deg is not None:
+                check_threshold(options.edge_threshold_deg)
+            if options.edge_krho is not None:
+                check_krho(options.edge_krho)
+        except UserInputError as err:
+            raise UserInputError(f"simulator.{err}") from None
         try:
             RadarGrid.from_config(self.radar)
         except UserInputError as err:

@@ -90,51 +90,34 @@ def _narrow_band_grid(evaluate: Callable[[np.ndarray], np.ndarray], resolution: 
     exact = np.zeros(sdf.shape, dtype=bool)
     levels = _axis_levels(resolution, COARSEST_BLOCK)
     need = np.ones((len(levels[0]),) * 3, dtype=bool)  # points of the current level to evaluate
-    block = COARSEST_BLOCK
     for depth, index in enumerate(levels):
         grid = np.ix_(index, index, index)
-        todo = need & ~exact[grid]
-        where = np.nonzero(todo)
-        if len(where[0]):
-            points = np.stack([index[w] for w in where], axis=1)
-            values = evaluate(points)
-            sdf[index[where[0]], index[where[1]], index[where[2]]] = values
-            exact[index[where[0]], index[where[1]], index[where[2]]] = True
+        todo = np.nonzero(need & ~exact[grid])
+        if len(todo[0]):
+            target = tuple(index[t] for t in todo)
+            sdf[target] = evaluate(np.stack(target, axis=1))
+            exact[target] = True
         if depth + 1 == len(levels):
             break
-        corners = sdf[grid]  # [n, n, n]; the points of blocks refined at the previous level are known
-        stacked = np.stack([corners[a:len(index) - 1 + a, b:len(index) - 1 + b, c:len(index) - 1 + c]
-                            for a in (0, 1) for b in (0, 1) for c in (0, 1)])  # [8, n-1, n-1, n-1]
-        margin = BAND_SLACK * block * math.sqrt(3.0) * spacing
+        stacked = np.stack(_corners(sdf[grid]))  # [8, n-1, n-1, n-1]; refined blocks' corners are known
+        margin = BAND_SLACK * (COARSEST_BLOCK >> depth) * math.sqrt(3.0) * spacing
         with np.errstate(invalid="ignore"):
             refine = (np.nan_to_num(np.abs(stacked), nan=0.0).min(axis=0) < margin)
             refine |= (stacked > 0).any(axis=0) & (stacked <= 0).any(axis=0)
         if distance_limit is not None and margin > distance_limit:
             refine[...] = True
-        # Blocks that stop here: every point inside gets the corners' sign at the margin.
-        known = ~np.isnan(stacked).any(axis=0)
-        settled = known & ~refine & _reached(need, index)
+        # Blocks that stop here: their still-unknown points get the corners' sign at the margin.
+        settled = ~np.isnan(stacked).any(axis=0) & ~refine
         _fill_settled(sdf, exact, index, settled, np.sign(stacked[0]) * margin)
-        fine = levels[depth + 1]
-        lo, hi = zip(*(_parents(fine, index) for _ in range(3)))
-        need = np.zeros((len(fine),) * 3, dtype=bool)
-        for a in (lo[0], hi[0]):
-            for b in (lo[1], hi[1]):
-                for c in (lo[2], hi[2]):
-                    need |= refine[np.ix_(a, b, c)]
-        block //= 2
+        lo, hi = _parents(levels[depth + 1], index)  # the same along every axis
+        need = np.logical_or.reduce([refine[np.ix_(a, b, c)] for a in (lo, hi) for b in (lo, hi) for c in (lo, hi)])
     return sdf
 
 
-def _reached(need: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """Blocks of a level whose eight corners were all asked for (the others lie in settled space)."""
-    n = len(index) - 1
-    out = np.ones((n, n, n), dtype=bool)
-    for a in (0, 1):
-        for b in (0, 1):
-            for c in (0, 1):
-                out &= need[a:n + a, b:n + b, c:n + c]
-    return out
+def _corners(values: np.ndarray) -> list[np.ndarray]:
+    """The eight corner views [n-1, n-1, n-1] of the blocks of a level's point array [n, n, n]."""
+    n = values.shape[0] - 1
+    return [values[a:n + a, b:n + b, c:n + c] for a in (0, 1) for b in (0, 1) for c in (0, 1)]
 
 
 def _fill_settled(sdf: np.ndarray, exact: np.ndarray, index: np.ndarray, settled: np.ndarray,
