@@ -334,3 +334,48 @@ def test_rollsym_diagnostics_and_aspect_masks(tmp_path):
     with (out / "diagnostics.csv").open() as handle:
         row, = csv.DictReader(handle)
     assert float(row["partial/radar_dependence_iou_s_se"]) == 0.05 and float(row["partial/iou_s_count"]) == 4
+
+
+def test_lost_run_folders_are_scored_from_the_scores_the_report_kept(tmp_path, capsys):
+    """runs/ is machine-local: a run whose folder is gone comes back from the report's own per-shape
+    scores, with the same means, spreads, counts and seed merge; without either the report refuses."""
+    import math
+    import shutil
+
+    matrix = {"model": {"unet": {}}, "obs": {"full": {}}, "noise": {"low": {}}, "seed": {"seed0": {}, "seed1": {}}}
+    path = tmp_path / "rollsym.yaml"
+    path.write_text(yaml.safe_dump({"out_dir": str(tmp_path / "runs"), "matrix": matrix, "report": "rollsym"}, sort_keys=False))
+    values = {"seed0": [0.2, 0.4, 0.6, float("nan")], "seed1": [0.3, 0.5, 0.7, 0.9]}
+    for seed, ious in values.items():
+        test = tmp_path / "runs" / f"unet-full-low-{seed}" / "test" / "version_0" / "reconstructions" / "test" / "epoch_000"
+        test.mkdir(parents=True)
+        with (test / "scores.csv").open("w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(["index", "label", "iou_s", "radar_dependence_iou_s"])
+            writer.writerows([i, 0, "" if math.isnan(v) else v, 0.1 * (i + 1)] for i, v in enumerate(ious))
+        finished = [v for v in ious if not math.isnan(v)]
+        mean = sum(finished) / len(finished)
+        std = math.sqrt(sum((v - mean) ** 2 for v in finished) / len(finished))
+        (test.parents[4] / "metrics.json").write_text(json.dumps({
+            "iou_s_mean": mean, "iou_s_std": std, "iou_s_count": float(len(finished)), "num_shapes": 4.0,
+            "radar_dependence_iou_s_mean": 0.25, "radar_dependence_iou_s_se": math.sqrt(0.05 / 3) / 2}))  # ddof 1 / sqrt(n)
+        (test.parents[4] / "done").write_text(json.dumps({"wall_seconds": 2.0}))
+    out = tmp_path / "report"
+    assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
+    before = (out / "table.csv").read_text(), (out / "diagnostics.csv").read_text()
+    shutil.rmtree(tmp_path / "runs" / "unet-full-low-seed0")
+    assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
+    with (out / "table.csv").open() as handle:
+        row, = csv.DictReader(handle)
+    # seed0 re-pooled from its kept scores: mean 0.4, std sqrt(0.08/3) (ddof 0) over 3 defined shapes
+    assert float(row["full/iou_s_mean"]) == pytest.approx((0.4 + 0.6) / 2)
+    assert float(row["full/iou_s_std"]) == pytest.approx((math.sqrt(0.08 / 3) + math.sqrt(0.05)) / 2)
+    assert float(row["full/iou_s_seeds_std"]) == pytest.approx(math.sqrt(0.02))
+    assert ((out / "table.csv").read_text(), (out / "diagnostics.csv").read_text()) == before
+    text = (out / "table.md").read_text()
+    assert "| unet-full-low-seed0 | archived |" in text and "1 more scored from the per-shape scores" in text
+    assert sorted(p.name for p in (out / "scores").iterdir()) == ["unet-full-low-seed0.csv", "unet-full-low-seed1.csv"]
+    # neither a run folder nor kept scores: one clear error line
+    shutil.rmtree(tmp_path / "runs")
+    assert cli.main(["report", "--grid", str(path), "--out", str(tmp_path / "fresh")]) == 2
+    assert "holds no per-shape scores" in capsys.readouterr().err

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 from dataclasses import replace
 
-from radar2shape.reporting import SEED_SUFFIX, Cell, Column, Layout, collect_cells, markdown_table, run_notes, runs_table, write_csv
+from radar2shape.reporting import (SEED_SUFFIX, Cell, Column, Layout, collect_cells, markdown_table, pooled, read_scores, run_notes,
+                                   runs_table, score_keys, scores_file, write_csv)
 
 CHAMFER = Column("chamfer_l2_x1e3", "CD x10^3 ↓", higher_is_better=False, digits=2)
 IOU = Column("iou", "IoU ↑", higher_is_better=True)
@@ -117,13 +118,10 @@ def group_title(titles: dict[str, str]):
 
 
 # ---- per-shape scores: counts and the paper's 20-shape subset -------------------------------------
-def per_shape_scores(run_dir: Path) -> list[dict] | None:
-    """Rows of the last ``scores.csv`` the evaluator wrote for a run's test split (None if absent)."""
-    files = sorted(run_dir.glob("test/**/reconstructions/test/epoch_*/scores.csv"), key=lambda p: p.stat().st_mtime)
-    if not files:
-        return None
-    with files[-1].open(newline="") as handle:
-        return list(csv.DictReader(handle))
+def per_shape_scores(cell: Cell) -> list[dict] | None:
+    """Rows of the per-shape test scores behind a cell (None if it has none)."""
+    path = scores_file(cell)
+    return read_scores(path) if path is not None else None
 
 
 def paper_subset(n_records: int, size: int = SUBSET_SIZE, seed: int = SUBSET_SEED) -> list[int]:
@@ -136,44 +134,30 @@ def paper_subset(n_records: int, size: int = SUBSET_SIZE, seed: int = SUBSET_SEE
     return sorted(int(i) for i in np.random.default_rng(seed).choice(n_records, size, replace=False))
 
 
-def pooled(rows: list[dict], keys) -> dict[str, float]:
-    """``<key>_mean|_std|_count`` (std ddof 0, as the evaluator) and ``_se`` of per-shape rows, ``num_shapes``."""
-    out = {"num_shapes": float(len(rows))}
-    for key in keys:
-        values = np.array([float(r[key]) for r in rows if r.get(key) not in (None, "")], float)
-        values = values[np.isfinite(values)]
-        if len(values):
-            out.update({f"{key}_mean": float(values.mean()), f"{key}_std": float(values.std()),
-                        f"{key}_count": float(len(values)),
-                        f"{key}_se": float(values.std(ddof=1) / math.sqrt(len(values))) if len(values) > 1 else math.nan})
-    return out
-
-
 def subset_cells(cells: list[Cell]) -> tuple[list[Cell], int | None]:
     """The cells re-pooled over :func:`paper_subset` of their per-shape scores, and the split size it was drawn from."""
     out, sizes = [], set()
     for cell in cells:
-        rows = per_shape_scores(cell.run_dir) if cell.state == "done" else None
+        rows = per_shape_scores(cell)
         if not rows:
             out.append(Cell(cell.name, cell.run_dir, cell.state))
             continue
         n_records = int(cell.metrics.get("num_shapes", len(rows)))
         sizes.add(n_records)
         chosen = set(paper_subset(n_records))
-        keys = [k for k in rows[0] if k not in ("index", "label")]
         out.append(Cell(cell.name, cell.run_dir, cell.state, cell.record,
-                        pooled([r for r in rows if int(r["index"]) in chosen], keys)))
+                        pooled([r for r in rows if int(r["index"]) in chosen], score_keys(rows))))
     return out, (sizes.pop() if len(sizes) == 1 else None)
 
 
 def copy_scores(cells: list[Cell], folder: Path) -> int:
-    """Each finished run's per-shape test scores as ``folder/<run>.csv``; returns how many."""
+    """Each finished or archived run's per-shape test scores as ``folder/<run>.csv``; returns how many."""
     copied = 0
     for cell in cells:
-        files = sorted(cell.run_dir.glob("test/**/reconstructions/test/epoch_*/scores.csv"), key=lambda p: p.stat().st_mtime)
-        if cell.state == "done" and files:
+        path = scores_file(cell)
+        if path is not None:
             folder.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(files[-1], folder / f"{cell.name}.csv")
+            shutil.copyfile(path, folder / f"{cell.name}.csv")
             copied += 1
     return copied
 
@@ -340,11 +324,11 @@ def stage1_rows(cells: list[Cell], layout: Layout) -> list[tuple[str, dict]]:
             if layout.split(cell.name) is None and cell.state == "done" and "iou_mean" in cell.metrics]
 
 
-def write_table1(grid, out: Path, layout: Layout, shapes: int) -> Path:
+def write_table1(grid, out: Path, layout: Layout, shapes: int, archive: Path | None = None) -> Path:
     """``NAME.md`` / ``NAME.csv`` (one table, groups side by side), ``NAME_20shapes.csv`` (the paper's
     held-out subset), ``NAME_diagnostics.csv``, ``scores/<run>.csv`` (per-shape) and ``NAME_<group>.png``."""
     name = grid.name
-    cells, outside = collect_cells(grid)
+    cells, outside = collect_cells(grid, archive)
     tables = layout.tables(cells)
     _, rows, columns = tables[0] if tables else (None, [], [])
     write_csv(rows, columns, out / f"{name}.csv")
@@ -543,10 +527,10 @@ def noise_degradation(tables, cells: list[Cell], metric: str = "iou_s") -> str |
     return "\n".join(lines)
 
 
-def write_rollsym(grid, out: Path, layout: Layout, shapes: int) -> Path:
+def write_rollsym(grid, out: Path, layout: Layout, shapes: int, archive: Path | None = None) -> Path:
     """``table.md`` / ``table.csv`` / ``diagnostics.csv``: one table and one diagnostics table per noise
     level (CSV rows ``<noise>/<model>``), and the per-shape scores ``scores/<run>.csv``."""
-    cells, _ = collect_cells(grid)
+    cells, _ = collect_cells(grid, archive)
     tables = layout.tables(cells)
     diagnostics = layout.tables(cells, layout.diagnostics)
     sections = [f"### {noise_level(cells, s)}\n\n{markdown_table(rows, columns)}\n\n"
@@ -577,7 +561,7 @@ def write_rollsym(grid, out: Path, layout: Layout, shapes: int) -> Path:
 
 
 # ---- demo ----------------------------------------------------------------------------------------
-def write_demo(grid, out: Path, layout: Layout, shapes: int) -> Path:
+def write_demo(grid, out: Path, layout: Layout, shapes: int, archive: Path | None = None) -> Path:
     """``README.md``, ``table_<obs>.csv`` and ``reconstructions.png`` (full observability)."""
     cells, _ = collect_cells(grid)
     lines = ["# radar2shape demo", "",
@@ -632,7 +616,7 @@ def monocone_cells(scores: list[dict], columns) -> list[Cell]:
     return out
 
 
-def write_monocone(grid, out: Path, layout: Layout, shapes: int) -> Path:
+def write_monocone(grid, out: Path, layout: Layout, shapes: int, archive: Path | None = None) -> Path:
     """``monocone.md`` / ``monocone.csv`` (Table 1 columns), the paired radar-vs-control table,
     ``scores.csv`` and ``monocone_<setting>.png``, from ``<out_dir>/experiment/``."""
     work = grid.out_dir / "experiment"

@@ -18,6 +18,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class Column:
@@ -144,13 +146,61 @@ class Cell:
     metrics: dict = field(default_factory=dict)
 
 
-def read_cell(name: str, run_dir: Path) -> Cell:
-    """The state, ``done`` record and test metrics of one run folder."""
+SCORES_GLOB = "test/**/reconstructions/test/epoch_*/scores.csv"  # the evaluator's per-shape scores of a run
+ARCHIVED = "archived"  # a run whose folder is gone, scored from the per-shape scores its report kept
+
+
+def read_scores(path: Path) -> list[dict]:
+    with Path(path).open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def pooled(rows: list[dict], keys) -> dict[str, float]:
+    """``<key>_mean|_std|_count`` (std ddof 0, as the evaluator) and ``_se`` of per-shape rows, ``num_shapes``."""
+    out = {"num_shapes": float(len(rows))}
+    for key in keys:
+        values = np.array([float(r[key]) for r in rows if r.get(key) not in (None, "")], float)
+        values = values[np.isfinite(values)]
+        if len(values):
+            out.update({f"{key}_mean": float(values.mean()), f"{key}_std": float(values.std()),
+                        f"{key}_count": float(len(values)),
+                        f"{key}_se": float(values.std(ddof=1) / math.sqrt(len(values))) if len(values) > 1 else math.nan})
+    return out
+
+
+def score_keys(rows: list[dict]) -> list[str]:
+    """The metric columns of per-shape score rows (all but the record index and class label)."""
+    return [k for k in (rows[0] if rows else {}) if k not in ("index", "label")]
+
+
+def read_cell(name: str, run_dir: Path, archive: Path | None = None) -> Cell:
+    """The state, ``done`` record and test metrics of one run folder.
+
+    A run without a folder whose per-shape scores ``archive/<name>.csv`` a previous report kept
+    (runs/ lives on one machine, reports/ in the repository) is re-pooled from those scores: the
+    same means, spreads and counts as its test; only its wall time and figures are gone.
+    """
     if (run_dir / "done").is_file():
         metrics_file = run_dir / "metrics.json"
         metrics = json.loads(metrics_file.read_text()) if metrics_file.is_file() else {}
         return Cell(name, run_dir, "done", json.loads((run_dir / "done").read_text()), metrics)
-    return Cell(name, run_dir, "failed" if (run_dir / "failed").is_file() else "missing")
+    if (run_dir / "failed").is_file():
+        return Cell(name, run_dir, "failed")
+    kept = archive / f"{name}.csv" if archive is not None else None
+    if kept is not None and kept.is_file() and not run_dir.exists():
+        rows = read_scores(kept)
+        return Cell(name, run_dir, ARCHIVED, {"scores": str(kept)}, pooled(rows, score_keys(rows)))
+    return Cell(name, run_dir, "missing")
+
+
+def scores_file(cell: Cell) -> Path | None:
+    """The per-shape test scores behind a finished or archived cell (None if it has none)."""
+    if cell.state == ARCHIVED:
+        return Path(cell.record["scores"])
+    if cell.state != "done":
+        return None
+    files = sorted(cell.run_dir.glob(SCORES_GLOB), key=lambda p: p.stat().st_mtime)
+    return files[-1] if files else None
 
 
 def tested_cell(run_dir: Path) -> Cell | None:
@@ -161,10 +211,11 @@ def tested_cell(run_dir: Path) -> Cell | None:
     return Cell(run_dir.name, run_dir, "tested", {}, read_logged_metrics(files[-1]))
 
 
-def collect_cells(grid) -> tuple[list[Cell], list[Cell]]:
-    """The grid's runs in file order, and the ``a-b``-named folders of ``out_dir`` the grid does not
-    list but that hold a logged test (a model scored by hand, or another experiment's rows)."""
-    cells = [read_cell(run.name, grid.run_dir(run)) for run in grid.runs]
+def collect_cells(grid, archive: Path | None = None) -> tuple[list[Cell], list[Cell]]:
+    """The grid's runs in file order (archived ones from ``archive``, see :func:`read_cell`), and the
+    ``a-b``-named folders of ``out_dir`` the grid does not list but that hold a logged test (a model
+    scored by hand, or another experiment's rows)."""
+    cells = [read_cell(run.name, grid.run_dir(run), archive) for run in grid.runs]
     known = {cell.name for cell in cells}
     extra = sorted(p for p in grid.out_dir.glob("*-*") if p.is_dir() and p.name not in known) if grid.out_dir.is_dir() else []
     return cells, [cell for cell in map(tested_cell, extra) if cell is not None]
@@ -181,8 +232,12 @@ def runs_table(cells: list[Cell]) -> str:
     lines.append(f"| **total** | | | | | **{total:.0f}** |")
     swept = [c for c in cells if c.state != "tested"]
     done = sum(c.state == "done" for c in swept)
+    archived = sum(c.state == ARCHIVED for c in swept)
     lines += ["", f"{done} of {len(swept)} runs finished; summed wall time of the runs {total / 60:.1f} min "
               "(fit + test, excluding the prepare steps)."]
+    if archived:
+        lines[-1] += (f" {archived} more scored from the per-shape scores an earlier report kept (state "
+                      f"`{ARCHIVED}`: run folder not on this machine, wall time not known).")
     return "\n".join(lines)
 
 
@@ -211,7 +266,7 @@ class Layout:
 
     name: str
     columns: tuple[Column, ...]
-    write: Callable  # write(grid, out: Path, layout, shapes: int) -> the main Markdown file
+    write: Callable  # write(grid, out: Path, layout, shapes: int, archive: Path) -> the main Markdown file
     parts: tuple[str, ...] = ("row", "group")
     row_titles: dict[str, str] = field(default_factory=dict)
     group_titles: dict[str, str] = field(default_factory=dict)
@@ -291,14 +346,16 @@ def write_report(grid, out: str | Path | None = None, layout: str | None = None,
     chosen = get_layout(layout or grid.report or "table1")
     out = Path(out) if out else Path("reports") / grid.name
     check_output_dir(out, "--out")
-    if not grid.out_dir.is_dir() or not any(grid.out_dir.iterdir()):
+    archive = out / "scores"  # per-shape scores this report kept last time: they stand in for lost run folders
+    ran = grid.out_dir.is_dir() and any(grid.out_dir.iterdir())
+    if not ran and not (archive.is_dir() and any(archive.glob("*.csv"))):
         raise UserInputError(f"{grid.path}: no runs to report: out_dir {grid.out_dir} is missing or empty "
-                             f"(run 'radar2shape sweep {grid.path}' first)")
+                             f"and {archive} holds no per-shape scores (run 'radar2shape sweep {grid.path}' first)")
     created = [folder for folder in (out, *out.parents) if not folder.exists()]
     out.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
     try:
-        main = chosen.write(grid, staging, chosen, shapes)
+        main = chosen.write(grid, staging, chosen, shapes, archive)
         for path in sorted(p for p in staging.rglob("*") if p.is_file()):
             target = out / path.relative_to(staging)
             target.parent.mkdir(parents=True, exist_ok=True)
