@@ -38,6 +38,7 @@ class SimulatorOptions:
     polarization: Optional[str] = None  # "VV" (default), "HH", "HV" or "VH": records hold one channel
     edge_threshold_deg: Optional[float] = None  # +ec methods: sharp-edge normal turn in degrees
     edge_krho: Optional[float] = None  # +ec methods: rounded edges count while k * radius <= this (0: none)
+    edge_order: Optional[int] = None  # +ec methods: 1 single diffraction, 2 (default) plus facing sheet edges
 
 
 @dataclass
@@ -59,7 +60,7 @@ class BuildConfig:
         """The checks types cannot express, so that a build fails before it writes anything."""
         from radar2shape.geometry.families import FAMILIES
         from radar2shape.radar import RadarGrid
-        from radar2shape.radar.edges import check_krho, check_threshold
+        from radar2shape.radar.edges import check_krho, check_order, check_threshold
 
         self.sampling = replace(self.sampling, sdf_near_sigmas=tuple(self.sampling.sdf_near_sigmas))
         if self.family not in FAMILIES:
@@ -99,6 +100,8 @@ class BuildConfig:
                 check_threshold(options.edge_threshold_deg)
             if options.edge_krho is not None:
                 check_krho(options.edge_krho)
+            if options.edge_order is not None:
+                check_order(options.edge_order)
         except UserInputError as err:
             raise UserInputError(f"simulator.{err}") from None
         try:

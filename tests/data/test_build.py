@@ -208,6 +208,7 @@ def test_config_errors_name_the_field(tmp_path, text, message):
         ("family: parts\nnum: 3\nsimulator: {method: fdtd}\n", r"simulator.method: expected 'po' or 'sbr'"),
         ("family: parts\nnum: 3\nsimulator: {bounces: 3}\n", r"simulator: key 'bounces': unknown key"),
         ("family: parts\nnum: 3\nsimulator: {edge_krho: -1}\n", r"simulator.edge_krho: expected a number >= 0, got -1"),
+        ("family: parts\nnum: 3\nsimulator: {edge_order: 3}\n", r"simulator.edge_order: expected 1 .* or 2 .*got 3"),
     ],
 )
 def test_bad_configs_give_one_line_and_leave_nothing_behind(tmp_path, capsys, text, message):

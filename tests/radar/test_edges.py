@@ -82,14 +82,15 @@ def test_wedge_fringe_is_finite_at_both_specular_directions():
 
 @pytest.mark.parametrize("aspect_deg", [20.0, 50.0, 75.0, 85.0, 88.0, 90.0])
 def test_plate_principal_plane_matches_strip_gtd(aspect_deg):
-    """Plate 3 lambda (x, in the plane of incidence) by 12 lambda (y), u in the x-z plane:
+    """Single diffraction (edge_order 1). Plate 3 lambda (x, in the plane of incidence) by 12 lambda (y), u in the x-z plane:
     PO + fringe = Keller's half-plane coefficients of the two y-edges, both polarisations,
     up to grazing (90 deg: edge-on, where PO is zero). The x-edges, off their Keller cone, add
     terms of relative size ~1 / (k L_y): the tolerance."""
     w, length = 3 * LAM, 12 * LAM
     mesh = plate(length, w, normal_axis=2, long_axis=0)  # x extent w, y extent length
     a = np.radians(aspect_deg)
-    got = simulate(mesh, [a], [0.0], [F_HZ], method="po+ec", polarization="all", dtype=np.complex128)[0, 0, 0]
+    got = simulate(mesh, [a], [0.0], [F_HZ], method="po+ec", polarization="all", dtype=np.complex128,
+                   edge_order=1)[0, 0, 0]
     corners = np.array([[w / 2, 0.0], [-w / 2, 0.0]])
     faces_out = np.array([[[-1, 0], [-1, 0]], [[1, 0], [1, 0]]], dtype=float)
     soft, hard = gtd_principal_plane(corners, faces_out, a, length)

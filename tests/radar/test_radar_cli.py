@@ -51,7 +51,8 @@ def test_grid_file_and_keep_size(mesh_file, tmp_path):
     "extra, match",
     [(["--aspect-deg", "0:190:3"], "aspect"), (["--freq-ghz", "0:10:3"], "positive"), (["--roll-deg", "0:1"], "START:STOP:COUNT"),
      (["--freq-ghz", "8:12:0"], "COUNT"), (["--size-m", "-1"], "size"), (["--method", "sbr", "--bounces", "0"], "max_bounces"),
-     (["--method", "po+ec", "--edge-krho", "-1"], "edge_krho"), (["--method", "po+ec", "--edge-threshold-deg", "0"], "edge_threshold")],
+     (["--method", "po+ec", "--edge-krho", "-1"], "edge_krho"), (["--method", "po+ec", "--edge-threshold-deg", "0"], "edge_threshold"),
+     (["--method", "po+ec", "--edge-order", "3"], "edge_order")],
 )
 def test_bad_arguments(mesh_file, tmp_path, extra, match):
     with pytest.raises(UserInputError, match=match):

@@ -65,6 +65,9 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--edge-krho", type=float, default=1.0,
                         help="+ec: a convex rounded edge diffracts at wavenumber k while k * (its radius of "
                              "curvature) <= this, >= 0 (0: only the sharp edges)")
+    parser.add_argument("--edge-order", type=int, default=2,
+                        help="+ec: 1 single edge diffraction, 2 (default) also the double diffraction between "
+                             "the facing edges of flat sheets (plates, fins)")
     parser.add_argument("--bounces", type=int, default=5, help="sbr: bounces traced, >= 1 (1 = PO only)")
     parser.add_argument("--rays-per-wavelength", type=float, default=8.0,
                         help="sbr: ray tubes per wavelength at the highest frequency, > 0")
@@ -76,7 +79,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from radar2shape.radar.grid import RadarGrid
-    from radar2shape.radar.edges import check_krho, check_threshold
+    from radar2shape.radar.edges import check_krho, check_order, check_threshold
     from radar2shape.radar.sbr import check_options
 
     grid = RadarGrid.from_yaml(args.grid) if args.grid else RadarGrid.default()
@@ -92,6 +95,7 @@ def main(args: argparse.Namespace) -> int:
     if args.method.endswith("+ec"):
         check_threshold(args.edge_threshold_deg)
         check_krho(args.edge_krho)
+        check_order(args.edge_order)
     channels = 4 if args.pol == "ALL" else 1
     cells = len(grid.aspect_rad) * len(grid.roll_rad) * len(grid.freq_hz) * channels
     check_memory(cells * BYTES_PER_CELL, f"a response of {len(grid.aspect_rad)} x {len(grid.roll_rad)} x "
@@ -116,7 +120,7 @@ def main(args: argparse.Namespace) -> int:
     if args.method.startswith("sbr"):
         options.update(max_bounces=args.bounces, rays_per_wavelength=args.rays_per_wavelength)
     if args.method.endswith("+ec"):
-        options.update(edge_threshold_deg=args.edge_threshold_deg, edge_krho=args.edge_krho)
+        options.update(edge_threshold_deg=args.edge_threshold_deg, edge_krho=args.edge_krho, edge_order=args.edge_order)
     response = simulate(mesh, grid.aspect_rad, grid.roll_rad, grid.freq_hz, method=args.method,
                         shadowing=not args.no_shadow, **options)
     seconds = time.perf_counter() - start

@@ -45,6 +45,9 @@ SHARP_EDGE_DEG = 30.0
 # lambda / (2 pi) is not resolved by the wave. The fringe terms of the many small turns across such
 # a rim sum to a mesh-independent value as the mesh is refined (docs/radar.md, "Rounded edges").
 ROUNDED_EDGE_KRHO = 1.0
+# Diffraction order: 2 adds the wave between the facing edges of flat sheets (radar/edge_pairs.py),
+# which sets a plate's HH apart from its VV; closed solids have no sheet edges, so 1 and 2 agree there.
+EDGE_ORDER = 2
 # Polarisation letters: V = theta-hat of u, H = phi-hat. First letter transmit, second receive.
 POLARIZATIONS = ("VV", "HH", "HV", "VH")
 ALL_POLARIZATIONS = ("VV", "VH", "HV", "HH")  # reshape(..., 2, 2) -> [transmit, receive], V = 0, H = 1
@@ -97,6 +100,14 @@ def check_threshold(threshold_deg) -> float:
     if not (0.0 < value <= 180.0):
         raise UserInputError(f"edge_threshold_deg: expected degrees in (0, 180], got {threshold_deg!r}")
     return value
+
+
+def check_order(order) -> int:
+    """The diffraction order of the edge terms: 1 (single) or 2 (plus sheet edge pairs)."""
+    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order not in (1, 2):
+        raise UserInputError(f"edge_order: expected 1 (single diffraction) or 2 (plus the double diffraction "
+                             f"between facing sheet edges), got {order!r}")
+    return int(order)
 
 
 def check_krho(krho) -> float:
@@ -305,6 +316,22 @@ def visible(edges: EdgeSet, u: np.ndarray, phi: np.ndarray, outside: np.ndarray,
     return out
 
 
+def edge_frame(t: np.ndarray, u: np.ndarray) -> tuple[dict, dict, np.ndarray]:
+    """(p.t^, p.w^ for p = "V", "H", each [E, D]; defined [E, D]) for edge tangents t and directions u.
+
+    t^ = (t - (t.u) u) / sin beta, so p.t^ = (p.t) / sin beta for p perpendicular to u;
+    w^ = t x u / sin beta, so p.w^ = t.(u x p) / sin beta, with u x theta = phi, u x phi = -theta.
+    Looking along an edge (sin beta < 1e-9) both are set to zero.
+    """
+    theta, phihat = polarisation_basis(u)
+    along = t @ u.T  # [E, D] cos beta
+    sin_beta = np.sqrt(np.maximum(1.0 - along**2, 0.0))
+    ok = sin_beta > 1e-9
+    inv = np.divide(1.0, sin_beta, out=np.zeros_like(sin_beta), where=ok)
+    t_dot = {"V": (t @ theta.T) * inv, "H": (t @ phihat.T) * inv}
+    return t_dot, {"V": t_dot["H"], "H": -t_dot["V"]}, ok
+
+
 def amplitudes(edges: EdgeSet, u: np.ndarray, phi: np.ndarray, lit: np.ndarray,
                polarizations: tuple[str, ...]) -> np.ndarray:
     """Real amplitudes [P, E, D] of each (edge, direction) term, zero where the edge is not lit.
@@ -314,18 +341,10 @@ def amplitudes(edges: EdgeSet, u: np.ndarray, phi: np.ndarray, lit: np.ndarray,
     t^ is undefined and the term is set to zero).
     """
     soft, hard = fringe(phi, edges.wedge[:, None])
-    theta, phihat = polarisation_basis(u)
-    t = edges.tangents
-    along = t @ u.T  # [E, D] cos beta
-    sin_beta = np.sqrt(np.maximum(1.0 - along**2, 0.0))
-    ok = lit & (sin_beta > 1e-9)
-    inv = np.divide(1.0, sin_beta, out=np.zeros_like(sin_beta), where=ok)
-    # t^ = (t - (t.u) u) / sin beta, so p.t^ = (p.t) / sin beta for p perpendicular to u;
-    # w^ = t x u / sin beta, so p.w^ = t.(u x p) / sin beta, with u x theta = phi, u x phi = -theta.
-    t_dot = {"V": (t @ theta.T) * inv, "H": (t @ phihat.T) * inv}
-    w_dot = {"V": t_dot["H"], "H": -t_dot["V"]}
+    t_dot, w_dot, ok = edge_frame(edges.tangents, u)
+    ok &= lit
     scale = np.where(ok, edges.lengths[:, None] / (2.0 * _SQRT_PI), 0.0)
-    out = np.empty((len(polarizations), len(t), len(u)))
+    out = np.empty((len(polarizations), edges.n_edges, len(u)))
     for i, name in enumerate(polarizations):
         tx, rx = name[0], name[1]
         out[i] = scale * (soft * t_dot[rx] * t_dot[tx] - hard * w_dot[rx] * w_dot[tx])
@@ -394,18 +413,26 @@ class EdgeDiffraction:
     """The fringe response of one mesh's sharp (and rounded) edges, chunk by chunk of directions."""
 
     def __init__(self, facets: FacetMesh, threshold_deg: float = SHARP_EDGE_DEG, scene=None,
-                 krho: float = ROUNDED_EDGE_KRHO, k_min: float = np.inf):
-        """``krho`` and ``k_min`` (the lowest wavenumber simulated) bound the rounded edges kept."""
+                 krho: float = ROUNDED_EDGE_KRHO, k_min: float = np.inf, order: int = EDGE_ORDER):
+        """``krho`` and ``k_min`` (the lowest wavenumber simulated) bound the rounded edges kept;
+        ``order`` 2 adds the double diffraction between facing sheet edges (radar/edge_pairs.py)."""
+        from radar2shape.radar.edge_pairs import sheet_pairs
+
         self.krho = krho
         max_radius = krho / k_min if krho > 0 and k_min > 0 else 0.0
         self.edges = sharp_edges(facets, threshold_deg, max_radius)
+        self.pairs = sheet_pairs(self.edges, facets) if check_order(order) >= 2 else None
         self.scene = scene
         self.offset = EDGE_RAY_OFFSET * float(np.linalg.norm(np.ptp(facets.vertices, axis=0)))
 
-    def amplitudes(self, u: np.ndarray, polarizations: tuple[str, ...]) -> np.ndarray:
-        """[P, E, D] term amplitudes for directions u (visibility by Embree when a scene was given)."""
+    def lit(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(phi, lit) [E, D]: each edge's angle to u and whether it sees the radar (Embree when a scene was given)."""
         phi, outside = wedge_angles(self.edges, u)
-        lit = visible(self.edges, u, phi, outside, self.scene, self.offset)
+        return phi, visible(self.edges, u, phi, outside, self.scene, self.offset)
+
+    def amplitudes(self, u: np.ndarray, polarizations: tuple[str, ...]) -> np.ndarray:
+        """[P, E, D] term amplitudes for directions u."""
+        phi, lit = self.lit(u)
         return amplitudes(self.edges, u, phi, lit, polarizations)
 
     def groups(self, k: np.ndarray) -> list[tuple[slice, np.ndarray]]:
@@ -427,7 +454,12 @@ class EdgeDiffraction:
         out = np.zeros((len(u), len(k), len(polarizations)), dtype=po.complex_dtype(real_dtype))
         if self.edges.n_edges == 0:
             return out
-        amp = self.amplitudes(u, polarizations)
+        phi, lit = self.lit(u)
+        amp = amplitudes(self.edges, u, phi, lit, polarizations)
+        if self.pairs is not None and self.pairs.n_pairs:
+            from radar2shape.radar.edge_pairs import pair_response
+
+            out += pair_response(self.pairs, u, lit, k, edge_frame(self.edges.tangents, u)[1], polarizations, real_dtype)
         for block in blocks:
             for run, members in self.groups(k[block]):
                 part = slice(block.start + run.start, block.start + run.stop)

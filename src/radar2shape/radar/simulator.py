@@ -74,7 +74,7 @@ def simulate(mesh, aspect_rad, roll_rad, freq_hz, method: str = "po", shadowing:
              dtype=np.complex64, max_bounces: int = sbr.DEFAULT_BOUNCES,
              rays_per_wavelength: float = sbr.DEFAULT_RAYS_PER_WAVELENGTH, polarization="VV",
              edge_threshold_deg: float = edges.SHARP_EDGE_DEG,
-             edge_krho: float = edges.ROUNDED_EDGE_KRHO) -> np.ndarray:
+             edge_krho: float = edges.ROUNDED_EDGE_KRHO, edge_order: int = edges.EDGE_ORDER) -> np.ndarray:
     """Complex monostatic response S [N_aspect, N_roll, N_freq] of a PEC mesh, |S|^2 = RCS (m^2).
 
     ``mesh`` (trimesh.Trimesh or (vertices, faces)) is in metres as given, the phase referenced
@@ -87,7 +87,9 @@ def simulate(mesh, aspect_rad, roll_rad, freq_hz, method: str = "po", shadowing:
     docs/sbr_lora.md); "po+ec" / "sbr+ec" add the equivalent edge currents of the sharp edges
     (normals turning by at least ``edge_threshold_deg``, and open boundaries; radar/edges.py),
     and of the convex rounded edges whose radius of curvature is at most ``edge_krho`` / k at each
-    wavenumber k (0: none; the default 1 lights the thin rims the wave cannot resolve).
+    wavenumber k (0: none; the default 1 lights the thin rims the wave cannot resolve);
+    ``edge_order`` 2 (default) adds the double diffraction between the facing edges of flat
+    sheets (radar/edge_pairs.py), 1 keeps single diffraction only.
 
     ``polarization``: "VV" (transmit and receive theta-hat = d u / d aspect), "HH" (phi-hat =
     d u / d roll, normalised; at the poles the roll is taken as 0), "HV" (transmit H, receive V)
@@ -105,6 +107,7 @@ def simulate(mesh, aspect_rad, roll_rad, freq_hz, method: str = "po", shadowing:
     if with_edges:
         edges.check_threshold(edge_threshold_deg)
         edges.check_krho(edge_krho)
+        edges.check_order(edge_order)
     real_dtype = _real_dtype(dtype)
     aspect, roll, freq = check_axes(aspect_rad, roll_rad, freq_hz)
     facets = mesh if isinstance(mesh, FacetMesh) else facet_mesh(mesh)
@@ -123,7 +126,7 @@ def simulate(mesh, aspect_rad, roll_rad, freq_hz, method: str = "po", shadowing:
     fringe = None
     if with_edges:
         diffraction = edges.EdgeDiffraction(facets, edge_threshold_deg, occluder.scene if occluder else None,
-                                            krho=edge_krho, k_min=float(np.abs(k).min()))
+                                            krho=edge_krho, k_min=float(np.abs(k).min()), order=edge_order)
         fringe = np.zeros((len(u), len(k), len(names)), dtype=dtype)
 
     def run(chunk: slice) -> None:
