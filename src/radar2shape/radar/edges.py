@@ -21,7 +21,9 @@ radius of curvature across it (read through the two opposite vertices) is at mos
 (default 1: under a radian of phase per radius, a rim the wave cannot resolve) also carries its
 fringe current, at that frequency only. Edges of more than two
 faces (the diagonal of a double-sided plate, T-junctions) and concave edges (outside wedge angle
-below pi, where multiple reflections rule: SBR's part) carry no fringe current.
+below pi, where multiple reflections rule: SBR's part) carry no fringe current. With ``order`` 2
+(the default) the facing edges of flat sheets also exchange the wave one sends along the sheet to
+the other (double diffraction, radar/edge_pairs.py).
 """
 
 from __future__ import annotations
