@@ -110,3 +110,12 @@ def test_contains_degenerate_meshes_hold_nothing():
     assert not contains(broken, UNIFORM).any()
     far = sphere(0.1, 2).apply_translation([10, 0, 0])
     assert not contains(far, UNIFORM).any()
+
+
+def test_nearest_distance_with_an_upper_bound_is_exact_below_it():
+    """The bounded query returns the exact distance within the bound and inf beyond it."""
+    rng = np.random.default_rng(0)
+    points, query = rng.uniform(-1, 1, (500, 3)), rng.uniform(-1.5, 1.5, (2000, 3))
+    exact = nearest_distance(query, points)
+    bounded = nearest_distance(query, points, upper_bound=0.1)
+    assert np.array_equal(bounded[exact < 0.1], exact[exact < 0.1]) and np.all(np.isinf(bounded[exact > 0.1]))

@@ -44,16 +44,18 @@ def sample_surface(mesh: trimesh.Trimesh, n: int, seed: int | np.random.Generato
     return points.astype(np.float32), normals.astype(np.float32)
 
 
-def nearest_distance(query: np.ndarray, points: np.ndarray) -> np.ndarray:
+def nearest_distance(query: np.ndarray, points: np.ndarray, upper_bound: float = np.inf) -> np.ndarray:
     """Euclidean distance from each query point to its nearest neighbour in ``points``.
 
-    ``inf`` everywhere when ``points`` is empty (no surface: infinitely far).
+    ``inf`` everywhere when ``points`` is empty (no surface: infinitely far), and for query points
+    farther than ``upper_bound`` (the k-d tree then stops early: much faster when only near
+    distances matter, e.g. a distance truncated at one voxel).
     """
     query = np.asarray(query, dtype=np.float64).reshape(-1, 3)
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if len(points) == 0:
         return np.full(len(query), np.inf)
-    distance, _ = cKDTree(points).query(query, k=1, workers=-1)
+    distance, _ = cKDTree(points).query(query, k=1, workers=-1, distance_upper_bound=upper_bound)
     return distance
 
 

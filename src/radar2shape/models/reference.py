@@ -149,12 +149,13 @@ class MeanShapeReference(_Reference):
         points = grid_points(res, (-bound, bound))
         voxel = 2 * bound / (res - 1)
         counts = np.zeros((len(points), self.BINS), dtype=np.int32)
-        rows = np.arange(len(points))
+        row_start = np.arange(len(points)) * self.BINS
         for i in range(len(records)):
             record = records[i]
             sign = np.where(contains(record_mesh(record), points), -1.0, 1.0)
-            sdf = sign * np.clip(nearest_distance(points, record["surface_points"]) / voxel, 0.0, 1.0)
-            np.add.at(counts, (rows, np.rint((sdf + 1) / 2 * (self.BINS - 1)).astype(int)), 1)
+            near = nearest_distance(points, record["surface_points"], upper_bound=voxel)  # inf past a voxel
+            sdf = sign * np.clip(near / voxel, 0.0, 1.0)
+            counts.reshape(-1)[row_start + np.rint((sdf + 1) / 2 * (self.BINS - 1)).astype(int)] += 1  # one bin per row
         field = quantile_from_counts(counts, np.linspace(-1.0, 1.0, self.BINS), float(self.hparams.level))
         self.mesh = sdf_grid_to_mesh(field.reshape(res, res, res), (-bound, bound))
         self._ready = True
