@@ -220,7 +220,7 @@ def test_report_is_all_or_nothing(tmp_path, monkeypatch):
     (tmp_path / "runs" / "m-full" / "done").write_text(json.dumps({"wall_seconds": 1.0}))
     grid = sweep.load_grid(grid_file)
 
-    def half_way(grid, out, layout, shapes):
+    def half_way(grid, out, layout, shapes, archive):
         (out / "table.csv").write_text("model\n")
         raise OSError(28, "No space left on device", str(out / "table.md"))
 
@@ -230,5 +230,5 @@ def test_report_is_all_or_nothing(tmp_path, monkeypatch):
     with pytest.raises(OSError, match="No space left"):
         reporting.write_report(grid, out)
     assert not (tmp_path / "reports").exists()
-    layout = reporting.Layout("ok", (), lambda grid, out, layout, shapes: (out / "t.md").write_text("x") and out / "t.md")
+    layout = reporting.Layout("ok", (), lambda grid, out, layout, shapes, archive: (out / "t.md").write_text("x") and out / "t.md")
     assert reporting.write_report(grid, out) == out / "t.md" and sorted(p.name for p in out.iterdir()) == ["t.md"]
