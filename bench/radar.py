@@ -27,6 +27,7 @@ sys.path.insert(0, str(ROOT / "tests" / "radar"))
 from po_reference import reference_po  # noqa: E402
 
 from radar2shape.radar import RadarGrid, simulate  # noqa: E402
+from radar2shape.radar import simulator  # noqa: E402
 from radar2shape.radar.simulator import worker_count  # noqa: E402
 
 
@@ -35,6 +36,9 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--reference-directions", type=int, default=4)
     parser.add_argument("--profile", type=int, default=0, metavar="N", help="print the N top functions by own time")
+    parser.add_argument("--chunks", type=int, nargs="*", default=[2**16, 2**17, 2**18], metavar="ENTRIES",
+                        help="also time these simulator chunk sizes (facet-direction pairs per chunk), "
+                             "interleaved in one run so that a drifting machine speed cancels")
     args = parser.parse_args()
 
     mesh = trimesh.creation.torus(0.35, 0.15, major_sections=50, minor_sections=20)
@@ -69,6 +73,19 @@ def main() -> int:
     print(f"reference: {ref_total:.1f} s extrapolated from {len(picks)} directions x all facets x all frequencies")
     print(f"speed-up over the reference: {ref_total / best:.0f}x; max relative difference on those directions {err:.1e}")
     print(f"target (2 cores): <= 1.0 s and >= 50x -> {'met' if best <= 1.0 and ref_total / best >= 50 else 'NOT met'}")
+    if args.chunks:
+        chunk_times: dict[int, list[float]] = {n: [] for n in args.chunks}
+        default = simulator.CHUNK_ENTRIES
+        for _ in range(args.repeats):
+            for n in args.chunks:
+                simulator.CHUNK_ENTRIES = n
+                wall = time.perf_counter()
+                simulate(mesh, grid.aspect_rad, grid.roll_rad, grid.freq_hz, shadowing=True)
+                chunk_times[n].append(time.perf_counter() - wall)
+        simulator.CHUNK_ENTRIES = default
+        print("chunk size (interleaved runs): " + "; ".join(
+            f"{n}{' (default)' if n == default else ''}: best {min(t):.3f} s, median {np.median(t):.3f} s"
+            for n, t in chunk_times.items()))
     if args.profile:
         profiler = cProfile.Profile()
         profiler.runcall(simulate, mesh, grid.aspect_rad, grid.roll_rad, grid.freq_hz, shadowing=True)
