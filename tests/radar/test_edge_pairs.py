@@ -133,3 +133,18 @@ def test_transition_tail_matches_erfc_on_both_branches():
     x = np.concatenate([np.linspace(0.0, 3 * SERIES_FROM, 3001), np.geomspace(3 * SERIES_FROM, 1e5, 200)])
     reference = np.exp(1j * x) * np.sqrt(np.pi) / 2 * np.exp(-1j * np.pi / 4) * erfc(np.sqrt(x) * np.exp(1j * np.pi / 4))
     assert np.max(np.abs(_tail(x) - reference) / np.abs(reference)) < 1e-7
+
+
+def test_pair_candidates_stay_within_direction_groups():
+    """Candidates pair only edges of one tangent direction: a 16-gon sheet's 16 boundary edges make
+    8 parallel pairs (opposite sides), not 120; its facing pairs are those 8."""
+    from radar2shape.radar.edge_pairs import _parallel_candidates
+
+    ring = trimesh.creation.cylinder(radius=0.2, height=0.01, sections=16)
+    disk = trimesh.Trimesh(ring.vertices, ring.faces[np.abs(ring.face_normals[:, 2] - 1) < 1e-9], process=False)
+    facets = facet_mesh(disk)
+    sharp = edges.sharp_edges(facets)
+    i, j = _parallel_candidates(sharp)
+    assert sharp.n_edges == 16 and len(i) == 8
+    pairs = sheet_pairs(sharp, facets)
+    assert pairs.n_pairs == 8 and np.allclose(pairs.separation, 2 * 0.2 * np.cos(np.pi / 16))

@@ -48,6 +48,8 @@ from radar2shape.radar.facets import FacetMesh
 PARALLEL_TOL = 1e-9
 # Relative slack (of the separation) for "in the sheet's plane" and "on a face".
 PLANE_TOL = 1e-6
+# Edge directions are grouped on their unit tangents rounded to this many decimals.
+DIRECTION_DIGITS = 6
 # Points of the straight path between two edges that must lie on the sheet.
 PATH_SAMPLES = 9
 # Pair-direction-frequency values evaluated at once (complex128 temporaries).
@@ -95,13 +97,30 @@ def _on_sheet(facets: FacetMesh, points: np.ndarray, normal: np.ndarray, tol: fl
     return bool(inside.any(axis=1).all())
 
 
+def _parallel_candidates(edges) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (i < j) of half-plane edges with the same tangent direction (up to sign, to
+    DIRECTION_DIGITS): pairs are formed within each direction group, so an open surface with
+    thousands of boundary edges in scattered directions does not make a quadratic number of them."""
+    sheet = np.flatnonzero(edges.wedge >= 2.0 - 1e-9)
+    t = edges.tangents[sheet]
+    first = np.argmax(np.abs(t) > 1e-6, axis=1)  # flip each tangent so its first clear component is positive
+    canonical = t * np.sign(t[np.arange(len(t)), first])[:, None]
+    _, group = np.unique(np.round(canonical, DIRECTION_DIGITS), axis=0, return_inverse=True)
+    group = group.ravel()
+    i, j = [np.zeros(0, int)], [np.zeros(0, int)]
+    for g in range(group.max(initial=-1) + 1):
+        members = sheet[group == g]
+        a, b = np.triu_indices(len(members), k=1)
+        i.append(members[a])
+        j.append(members[b])
+    return np.concatenate(i), np.concatenate(j)
+
+
 def sheet_pairs(edges, facets: FacetMesh) -> SheetPairs:
     """The facing, overlapping pairs of parallel half-plane edges of ``edges`` (an EdgeSet)."""
-    sheet = np.flatnonzero(edges.wedge >= 2.0 - 1e-9)
     rows: list[tuple] = []
-    if len(sheet) >= 2:
-        i, j = np.triu_indices(len(sheet), k=1)
-        i, j = sheet[i], sheet[j]
+    i, j = _parallel_candidates(edges)
+    if len(i):
         t = edges.tangents[i]
         keep = np.abs(np.einsum("qk,qk->q", t, edges.tangents[j])) >= 1.0 - PARALLEL_TOL
         keep &= np.abs(np.einsum("qk,qk->q", edges.normal0[i], edges.normal0[j])) >= 1.0 - PARALLEL_TOL
