@@ -335,16 +335,17 @@ def edge_frame(t: np.ndarray, u: np.ndarray) -> tuple[dict, dict, np.ndarray]:
 
 
 def amplitudes(edges: EdgeSet, u: np.ndarray, phi: np.ndarray, lit: np.ndarray,
-               polarizations: tuple[str, ...]) -> np.ndarray:
+               polarizations: tuple[str, ...], frame: tuple | None = None) -> np.ndarray:
     """Real amplitudes [P, E, D] of each (edge, direction) term, zero where the edge is not lit.
 
     a_pq = L / (2 sqrt(pi)) [f_s (p.t^)(q.t^) - f_h (p.w^)(q.w^)]; t^ and w^ are an orthonormal
     pair across u, so the polarisation factors stay bounded even looking along the edge (where
-    t^ is undefined and the term is set to zero).
+    t^ is undefined and the term is set to zero). ``frame``: :func:`edge_frame` of the edges and u,
+    when the caller already has it.
     """
     soft, hard = fringe(phi, edges.wedge[:, None])
-    t_dot, w_dot, ok = edge_frame(edges.tangents, u)
-    ok &= lit
+    t_dot, w_dot, defined = edge_frame(edges.tangents, u) if frame is None else frame
+    ok = defined & lit
     scale = np.where(ok, edges.lengths[:, None] / (2.0 * _SQRT_PI), 0.0)
     out = np.empty((len(polarizations), edges.n_edges, len(u)))
     for i, name in enumerate(polarizations):
@@ -457,11 +458,12 @@ class EdgeDiffraction:
         if self.edges.n_edges == 0:
             return out
         phi, lit = self.lit(u)
-        amp = amplitudes(self.edges, u, phi, lit, polarizations)
+        frame = edge_frame(self.edges.tangents, u)  # shared by the single and the pair terms
+        amp = amplitudes(self.edges, u, phi, lit, polarizations, frame)
         if self.pairs is not None and self.pairs.n_pairs:
             from radar2shape.radar.edge_pairs import pair_response
 
-            out += pair_response(self.pairs, u, lit, k, edge_frame(self.edges.tangents, u)[1], polarizations, real_dtype)
+            out += pair_response(self.pairs, u, lit, k, frame[1], polarizations, real_dtype)
         for block in blocks:
             for run, members in self.groups(k[block]):
                 part = slice(block.start + run.start, block.start + run.stop)
