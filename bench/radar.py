@@ -28,7 +28,6 @@ from po_reference import reference_po  # noqa: E402
 
 from radar2shape.radar import RadarGrid, simulate  # noqa: E402
 from radar2shape.radar import simulator  # noqa: E402
-from radar2shape.radar.simulator import worker_count  # noqa: E402
 
 
 def main() -> int:
@@ -67,7 +66,7 @@ def main() -> int:
     print(f"mesh: torus, {len(mesh.faces)} facets, non-convex; grid {grid.shape} (aspect, roll, freq), shadowing on")
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"machine load average {load:.1f} on {os.cpu_count()} cores (wall times need an otherwise idle machine)")
-    print(f"threads: {worker_count()}; wall time: best {best:.3f} s of {args.repeats} "
+    print(f"threads: {simulator.worker_count()}; wall time: best {best:.3f} s of {args.repeats} "
           f"(all: {', '.join(f'{w:.3f}' for w in walls)}); CPU time {min(cpus):.3f} s")
     print(f"evaluations (facet x direction x frequency): {evals:.3e}, {evals / best:.3e} per second")
     print(f"reference: {ref_total:.1f} s extrapolated from {len(picks)} directions x all facets x all frequencies")
