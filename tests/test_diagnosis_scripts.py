@@ -1,0 +1,70 @@
+"""scripts/stage1_fit_gap.py and scripts/paired_scores.py: tables from hand-made scores, one error line on bad input."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+spec = importlib.util.spec_from_file_location("stage1_fit_gap", REPO / "scripts" / "stage1_fit_gap.py")
+stage1_fit_gap = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(stage1_fit_gap)
+
+
+def test_report_rows_are_means_and_population_stds_per_split_and_grid():
+    # columns: iou, chamfer x1e3, fscore; a NaN IoU (no mesh) is left out of the IoU mean only
+    train = np.array([[0.8, 1.0, 0.5], [0.6, 3.0, 0.7]])
+    test = np.array([[0.5, 2.0, 0.4], [np.nan, 4.0, 0.2], [0.7, 6.0, 0.6]])
+    text = stage1_fit_gap.report(Path("runs/x"), {"test": {64: test}, "train": {64: train, 128: train}})
+    rows = [line for line in text.splitlines() if line.startswith("| t")]
+    assert rows == [
+        "| test | 3 | 64^3 | 0.600 ± 0.100 | 4.000 ± 1.633 | 0.400 ± 0.163 |",
+        "| train | 2 | 64^3 | 0.700 ± 0.100 | 2.000 ± 1.000 | 0.600 ± 0.100 |",
+        "| train | 2 | 128^3 | 0.700 ± 0.100 | 2.000 ± 1.000 | 0.600 ± 0.100 |",
+    ]
+
+
+def test_missing_run_is_one_error_line_and_no_output(tmp_path, monkeypatch):
+    out = tmp_path / "gap.md"
+    monkeypatch.setattr(sys, "argv", ["stage1_fit_gap.py", "--run", str(tmp_path / "nope"), "--out", str(out)])
+    with pytest.raises(SystemExit) as exc:
+        stage1_fit_gap.main()
+    assert str(exc.value).startswith("error: ") and "last.ckpt: not found" in str(exc.value)
+    assert "\n" not in str(exc.value) and not out.exists()
+
+
+paired_spec = importlib.util.spec_from_file_location("paired_scores", REPO / "scripts" / "paired_scores.py")
+paired_scores = importlib.util.module_from_spec(paired_spec)
+paired_spec.loader.exec_module(paired_scores)
+
+
+def write_scores(path: Path, rows: list[tuple[int, float, float, float]]) -> Path:
+    lines = ["index,label,chamfer_l2_x1e3,iou,fscore_1pct"] + [f"{i},0,{cd},{iou},{f}" for i, iou, f, cd in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_paired_scores_pair_by_index_and_drop_undefined(tmp_path):
+    # A lists its shapes in another order; shape 3 is only in A; B's IoU of shape 2 is undefined
+    a = write_scores(tmp_path / "a.csv", [(2, 0.5, 0.4, 1.0), (0, 0.6, 0.5, 2.0), (1, 0.9, 0.7, 3.0), (3, 0.1, 0.1, 9.0)])
+    b = write_scores(tmp_path / "b.csv", [(0, 0.4, 0.5, 4.0), (1, 0.6, 0.3, 3.0), (2, math.nan, 0.2, 2.0)])
+    ra, rb = paired_scores.read_scores(a), paired_scores.read_scores(b)
+    mean, se, n = paired_scores.paired(ra, rb, "iou")  # differences 0.2, 0.3
+    assert n == 2 and mean == pytest.approx(0.25) and se == pytest.approx(0.05)
+    mean, se, n = paired_scores.paired(ra, rb, "chamfer_l2_x1e3")  # -2, 0, -1
+    assert n == 3 and mean == pytest.approx(-1.0) and se == pytest.approx(1 / math.sqrt(3))
+    text = paired_scores.report([("a - b", a, b)])
+    assert "| iou | +0.2500 ± 0.0500 | 2 |" in text
+
+
+def test_paired_scores_name_a_file_without_score_columns(tmp_path):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("index,label,iou\n0,0,0.5\n")
+    with pytest.raises(SystemExit) as exc:
+        paired_scores.read_scores(bad)
+    assert str(exc.value).startswith(f"error: {bad}: expected columns") and "fscore_1pct" in str(exc.value)
