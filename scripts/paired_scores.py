@@ -15,13 +15,11 @@ an improvement.
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 from pathlib import Path
 
-import numpy as np
-
 from radar2shape.atomic import write_text_atomic
+from radar2shape.reporting import pooled, read_scores as read_rows
 
 METRICS = ("iou", "fscore_1pct", "chamfer_l2_x1e3")
 
@@ -30,8 +28,7 @@ def read_scores(path: Path) -> dict[int, dict[str, float]]:
     """``{record index: {metric: value}}`` of one per-shape score file."""
     if not path.is_file():
         raise SystemExit(f"error: {path}: not found (expected a per-shape score file, scores/<run>.csv)")
-    with path.open(newline="") as handle:
-        rows = list(csv.DictReader(handle))
+    rows = read_rows(path)
     missing = [m for m in ("index", *METRICS) if rows and m not in rows[0]]
     if not rows or missing:
         raise SystemExit(f"error: {path}: expected columns index, {', '.join(METRICS)}; missing {missing or 'all rows'}")
@@ -39,13 +36,10 @@ def read_scores(path: Path) -> dict[int, dict[str, float]]:
 
 
 def paired(a: dict[int, dict[str, float]], b: dict[int, dict[str, float]], metric: str) -> tuple[float, float, int]:
-    """Mean of ``a - b`` over shapes in both with the metric defined, its standard error, and the count."""
-    d = np.array([a[i][metric] - b[i][metric] for i in sorted(set(a) & set(b))], dtype=np.float64)
-    d = d[np.isfinite(d)]
-    if len(d) == 0:
-        return math.nan, math.nan, 0
-    se = float(d.std(ddof=1) / math.sqrt(len(d))) if len(d) > 1 else math.nan
-    return float(d.mean()), se, len(d)
+    """Mean of ``a - b`` over shapes in both with the metric defined, its standard error, and the count
+    (pooled as the report pools per-shape scores)."""
+    stats = pooled([{metric: a[i][metric] - b[i][metric]} for i in sorted(set(a) & set(b))], [metric])
+    return stats.get(f"{metric}_mean", math.nan), stats.get(f"{metric}_se", math.nan), int(stats.get(f"{metric}_count", 0))
 
 
 def report(pairs: list[tuple[str, Path, Path]]) -> str:
