@@ -283,3 +283,39 @@ def test_guidance_zero_ignores_the_radar_and_fully_masked_radar_has_finite_gradi
     tokens = model.encode_radar(torch.zeros_like(blank["radar"]).requires_grad_(), torch.zeros_like(blank["radar_mask"]))
     tokens.sum().backward()
     assert all(torch.isfinite(p.grad).all() for p in model.radar_encoder.parameters() if p.grad is not None)
+
+
+class WeightTrajectory(L.Callback):
+    """Records one weight after every optimizer step."""
+
+    def __init__(self):
+        self.values = []
+
+    def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx):
+        self.values.append(pl_module.latent_out.bias.detach().clone())
+
+
+def test_ema_decay_leaves_the_exponential_average_of_the_weights(stage1_ckpt, tmp_path):
+    """After fitting, the weights (and the checkpoint) are e_k = d e_(k-1) + (1 - d) w_k, e_1 = w_1."""
+    batch = {**radar_batch(4), "surface_points": sphere_batch()["surface_points"][:1].expand(4, -1, -1)}
+    decay, steps = 0.8, 6
+    model, trajectory = tiny_model(stage1_ckpt, ema_decay=decay, lr=1e-2), WeightTrajectory()
+    trainer = L.Trainer(max_steps=steps, logger=False, enable_checkpointing=False, enable_progress_bar=False,
+                        enable_model_summary=False, accelerator="cpu", default_root_dir=tmp_path,
+                        callbacks=[trajectory])
+    trainer.fit(model, datamodule=RadarStub(batch, GRID))
+    assert len(trajectory.values) == steps
+    expected = trajectory.values[0]
+    for w in trajectory.values[1:]:
+        expected = decay * expected + (1 - decay) * w
+    assert not torch.allclose(expected, trajectory.values[-1], atol=1e-4)  # the average is not the last iterate
+    torch.testing.assert_close(model.latent_out.bias, expected)
+    trainer.save_checkpoint(tmp_path / "ema.ckpt")
+    loaded = RadarDiffusion.load_from_checkpoint(tmp_path / "ema.ckpt", map_location="cpu", weights_only=True)
+    torch.testing.assert_close(loaded.latent_out.bias, expected)
+
+
+def test_ema_decay_out_of_range_is_refused(stage1_ckpt, tmp_path):
+    batch = {**radar_batch(4), "surface_points": sphere_batch()["surface_points"][:1].expand(4, -1, -1)}
+    with pytest.raises(UserInputError, match="ema_decay must be in"):
+        fit(tiny_model(stage1_ckpt, ema_decay=1.0), RadarStub(batch, GRID), 1, tmp_path)

@@ -55,7 +55,9 @@ class ReconstructionModel(L.LightningModule):
     :meth:`check_radar_spec` (refuse a DataModule whose radar does not fit the network).
 
     Hyperparameters read here, with defaults for models that do not declare them: ``lr``,
-    ``weight_decay``, ``lr_decay_steps`` (0: constant rate) and ``lr_decay`` (step factor).
+    ``weight_decay``, ``lr_decay_steps`` (0: constant rate), ``lr_decay`` (step factor) and
+    ``ema_decay`` (0: off; else validation, checkpoints and tests use an exponential moving average
+    of the weights, Lightning's ``EMAWeightAveraging``).
     ``optimizer_class`` picks Adam or AdamW per model. ``reads_radar = False`` marks a model whose
     reconstruction ignores the radar (a Stage-1 autoencoder, the mean shape): its radar dependence
     is zero by construction, so the evaluator does not spend a second reconstruction measuring it.
@@ -127,6 +129,17 @@ class ReconstructionModel(L.LightningModule):
             return optimizer
         scheduler = torch.optim.lr_scheduler.StepLR(optimizer, decay_steps, gamma=float(hp.get("lr_decay", 0.5)))
         return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}
+
+    def configure_callbacks(self):
+        """The weight average of ``ema_decay`` while fitting (a checkpoint's ``state_dict`` is the average)."""
+        decay = float(self.hparams.get("ema_decay", 0.0) or 0.0)
+        if not 0.0 <= decay < 1.0:
+            raise UserInputError(f"{type(self).__name__}: ema_decay must be in [0, 1), got {decay}")
+        if decay == 0.0 or self._trainer is None or self.trainer.state.fn != "fit":
+            return []
+        from lightning.pytorch.callbacks import EMAWeightAveraging
+
+        return [EMAWeightAveraging(decay=decay)]
 
     # ---- the radar spec travels with the weights -----------------------------------------------
     def set_radar_spec(self, spec: RadarSpec | None) -> None:

@@ -107,7 +107,8 @@ class RadarDiffusion(ReconstructionModel):
         num_samples, sample_steps, sample_eta, sampler: defaults of :meth:`reconstruct` (K samples,
             ``ddim`` with that many steps and eta, or ``ddpm``).
         mesh_resolution: marching-cubes grid of :meth:`reconstruct`; sample_seed: sampling seed.
-        lr, weight_decay: AdamW settings.
+        lr, weight_decay: AdamW settings. ema_decay: exponential moving average of the weights used
+            for validation, checkpoints and sampling (0 = off; the last iterate is noisy at a constant rate).
         cond_drop, guidance: classifier-free guidance: that share of training samples sees the
             "nothing observed" radar (zero, fully masked), and sampling uses
             ``eps_u + guidance (eps_c - eps_u)`` (1 = plain conditional sampling, no extra cost).
@@ -145,6 +146,7 @@ class RadarDiffusion(ReconstructionModel):
         weight_decay: float = 0.0,
         cond_drop: float = 0.0,
         guidance: float = 1.0,
+        ema_decay: float = 0.0,
     ) -> None:
         super().__init__()
         if loss not in ("v", "eps"):
