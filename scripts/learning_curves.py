@@ -1,9 +1,10 @@
 """Learning curves of a grid's training runs: validation score and training loss against step.
 
-    python scripts/learning_curves.py --grid table1-medium [--metric val/iou_mean] [--out reports/table1-medium]
+    python scripts/learning_curves.py --grid table1-medium [--metric val/iou_mean] [--out reports/table1-medium] \
+        [--runs FOLDER]
 
 Reads ``<out_dir>/<run>/fit/version_0/metrics.csv`` (Lightning's CSV logger) of every fitted run
-of the grid and writes ``learning_curves.md`` (one row per validation epoch: step, the metric, the
+of the grid (``--runs``: the run folders of an earlier grid state, moved aside, instead of ``out_dir``) and writes ``learning_curves.md`` (one row per validation epoch: step, the metric, the
 training loss of that epoch) and ``learning_curves.png``. A run whose log has no value of the
 metric (e.g. validation switched off) is listed with what it has. The curves say whether a run
 stopped learning or was stopped while learning, which decides between "more steps" and "a
@@ -32,16 +33,18 @@ def read_curve(path: Path, metric: str, loss: str = "train/loss_epoch") -> list[
              "loss": losses.get(r["epoch"], math.nan)} for r in rows if r.get(metric)]
 
 
-def grid_curves(grid_name: str, metric: str) -> dict[str, list[dict]]:
-    """Curves of the grid's fitted runs that have a metrics log, in grid order."""
+def grid_curves(grid_name: str, metric: str, runs: Path | None = None) -> dict[str, list[dict]]:
+    """Curves of the grid's fitted runs that have a metrics log under ``runs`` (default the grid's
+    ``out_dir``), in grid order."""
     from radar2shape.sweep import load_grid
 
     grid = load_grid(grid_name)
+    runs = runs or grid.out_dir
     curves = {}
     for run in grid.runs:
         if run.command != "fit":
             continue
-        logs = sorted((grid.out_dir / run.name / "fit").glob("version_*/metrics.csv"))
+        logs = sorted((runs / run.name / "fit").glob("version_*/metrics.csv"))
         if logs:
             curves[run.name] = read_curve(logs[-1], metric)
     return curves
@@ -80,9 +83,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--grid", required=True, help="grid name or file (conf/grid/NAME.yaml)")
     parser.add_argument("--metric", default="val/iou_mean", help="metrics.csv column (default val/iou_mean)")
     parser.add_argument("--out", type=Path, help="output folder (default reports/<grid>)")
+    parser.add_argument("--runs", type=Path, help="folder of the run folders (default the grid's out_dir)")
     args = parser.parse_args(argv)
+    if args.runs is not None and not args.runs.is_dir():
+        print(f"error: --runs: {args.runs} is not a folder", file=sys.stderr)
+        return 2
     try:
-        curves = grid_curves(args.grid, args.metric)
+        curves = grid_curves(args.grid, args.metric, args.runs)
     except UserInputError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -58,3 +58,15 @@ def test_no_logs_is_one_error_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:")
     assert not (tmp_path / "o").exists()
+
+
+def test_runs_folder_replaces_the_grids_out_dir(tmp_path, capsys):
+    moved = tmp_path / "moved"
+    write_run(moved, "a", LOG)
+    grid = tmp_path / "g.yaml"
+    grid.write_text(f"out_dir: {tmp_path / 'runs'}\nruns:\n  - {{name: a}}\n")
+    out = tmp_path / "o"
+    assert learning_curves.main(["--grid", str(grid), "--out", str(out), "--runs", str(moved)]) == 0
+    assert "| 1 | 125 | 0.2500 | 0.2 |" in (out / "learning_curves.md").read_text()
+    assert learning_curves.main(["--grid", str(grid), "--runs", str(tmp_path / "nowhere")]) == 2
+    assert capsys.readouterr().err.strip().startswith("error: --runs:")

@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# The paired comparisons of reports/table1-medium/paired.md, from the per-shape score files the
+# report keeps (scores/) and the two archives of earlier grid states (stage2-40-epochs/: Stage 2
+# for 40 epochs scored with its last weights; stage1-40-epochs/: the same on the 40-epoch Stage 1).
+#   bash scripts/table1_medium_paired.sh          (after `make report GRID=table1-medium`)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+R=reports/table1-medium
+S=$R/scores
+E40=$R/stage2-40-epochs/scores
+S40=$R/stage1-40-epochs/scores
+PY=${PY:-.venv/bin/python}
+"$PY" scripts/paired_scores.py --out $R/paired.md \
+  --pair "tuned - as in the paper, full" $S/radar2shape-full-seed0.csv $S/radar2shape_paper-full.csv \
+  --pair "tuned - as in the paper, partial" $S/radar2shape-partial-seed0.csv $S/radar2shape_paper-partial.csv \
+  --pair "Stage 2 80 epochs + EMA - 40 epochs, full" $S/radar2shape-full-seed0.csv $E40/radar2shape-full-seed0.csv \
+  --pair "Stage 2 80 epochs + EMA - 40 epochs, partial" $S/radar2shape-partial-seed0.csv $E40/radar2shape-partial-seed0.csv \
+  --pair "tuned - as in the paper, 40 epochs, full" $E40/radar2shape-full-seed0.csv $E40/radar2shape_paper-full.csv \
+  --pair "tuned - as in the paper, 40 epochs, partial" $E40/radar2shape-partial-seed0.csv $E40/radar2shape_paper-partial.csv \
+  --pair "Stage 1 60 - 40 epochs (Stage 2 40 epochs), full" $E40/radar2shape-full-seed0.csv $S40/radar2shape-full-seed0.csv \
+  --pair "Stage 1 60 - 40 epochs (Stage 2 40 epochs), partial" $E40/radar2shape-partial-seed0.csv $S40/radar2shape-partial-seed0.csv \
+  --pair "tuned - nearest neighbour, full" $S/radar2shape-full-seed0.csv $S/nearest-full.csv \
+  --pair "tuned - nearest neighbour, partial" $S/radar2shape-partial-seed0.csv $S/nearest-partial.csv \
+  --pair "tuned - TMNet, full" $S/radar2shape-full-seed0.csv $S/tmnet-full.csv
