@@ -19,10 +19,9 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "src"), str(REPO)]
 
-import importlib  # noqa: E402
-
 import torch  # noqa: E402
 import yaml  # noqa: E402
+from lightning.pytorch.cli import instantiate_class  # noqa: E402
 
 MODELS = [REPO / "conf/model/list_medium.yaml", REPO / "conf/model/tmnet_medium.yaml"]
 
@@ -46,16 +45,9 @@ def seconds_per_step(model: torch.nn.Module, batch: dict, steps: int) -> float:
     return (time.perf_counter() - start) / steps
 
 
-def build(config: Path) -> torch.nn.Module:
-    """The model of a ``class_path`` / ``init_args`` config file, in training mode."""
-    spec = yaml.safe_load(config.read_text())
-    module, name = spec["class_path"].rsplit(".", 1)
-    return getattr(importlib.import_module(module), name)(**spec["init_args"]).train()
-
-
 def bench(config: Path, batch_size: int, steps: int, threads: int) -> None:
     torch.manual_seed(0)
-    model = build(config)
+    model = instantiate_class((), yaml.safe_load(config.read_text())).train()
     num_freq = int(model.hparams.num_freq)
     print(f"{type(model).__name__} train ({config.name}, batch {batch_size}, radar 32x32x{num_freq}, {threads} threads)")
     timings = {}

@@ -4,8 +4,9 @@
         [--runs FOLDER]
 
 Reads ``<out_dir>/<run>/fit/version_0/metrics.csv`` (Lightning's CSV logger) of every fitted run
-of the grid (``--runs``: the run folders of an earlier grid state, moved aside, instead of ``out_dir``) and writes ``learning_curves.md`` (one row per validation epoch: step, the metric, the
-training loss of that epoch) and ``learning_curves.png``. A run whose log has no value of the
+of the grid (``--runs``: the run folders of an earlier grid state, moved aside, instead of
+``out_dir``) and writes ``learning_curves.md`` (one row per validation epoch: step, the metric,
+the training loss of that epoch) and ``learning_curves.png``. A run whose log has no value of the
 metric (e.g. validation switched off) is listed with what it has. The curves say whether a run
 stopped learning or was stopped while learning, which decides between "more steps" and "a
 different design".

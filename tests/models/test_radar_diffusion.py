@@ -79,6 +79,11 @@ def radar_batch(n: int, seed: int = 0) -> dict:
             "index": torch.arange(n)}
 
 
+def fit_batch(n: int = 4) -> dict:
+    """A training batch for the fit tests: random radar, one sphere's surface points for every shape."""
+    return {**radar_batch(n), "surface_points": sphere_batch()["surface_points"][:1].expand(n, -1, -1)}
+
+
 def test_causal_mask_blocks_later_tokens(stage1_ckpt):
     model = tiny_model(stage1_ckpt).eval()
     with torch.no_grad():  # undo the zero inits (output head, adaLN gates) so every path carries signal
@@ -186,7 +191,7 @@ def fit(model: RadarDiffusion, datamodule: L.LightningDataModule, steps: int, ro
 
 def test_fit_start_stores_statistics_and_radar_grid(stage1_ckpt, tmp_path):
     model = tiny_model(stage1_ckpt)
-    batch = {**radar_batch(4), "surface_points": sphere_batch()["surface_points"][:1].expand(4, -1, -1)}
+    batch = fit_batch()
     trainer = fit(model, RadarStub(batch, GRID), 2, tmp_path)
     assert bool(model.standardiser.ready)
     assert model.radar_spec.db_std == 10.0 and model.radar_spec.grid.shape == (4, 8, 8)
@@ -297,7 +302,7 @@ class WeightTrajectory(L.Callback):
 
 def test_ema_decay_leaves_the_exponential_average_of_the_weights(stage1_ckpt, tmp_path):
     """After fitting, the weights (and the checkpoint) are e_k = d e_(k-1) + (1 - d) w_k, e_1 = w_1."""
-    batch = {**radar_batch(4), "surface_points": sphere_batch()["surface_points"][:1].expand(4, -1, -1)}
+    batch = fit_batch()
     decay, steps = 0.8, 6
     model, trajectory = tiny_model(stage1_ckpt, ema_decay=decay, lr=1e-2), WeightTrajectory()
     trainer = L.Trainer(max_steps=steps, logger=False, enable_checkpointing=False, enable_progress_bar=False,
@@ -316,6 +321,6 @@ def test_ema_decay_leaves_the_exponential_average_of_the_weights(stage1_ckpt, tm
 
 
 def test_ema_decay_out_of_range_is_refused(stage1_ckpt, tmp_path):
-    batch = {**radar_batch(4), "surface_points": sphere_batch()["surface_points"][:1].expand(4, -1, -1)}
+    batch = fit_batch()
     with pytest.raises(UserInputError, match="ema_decay must be in"):
         fit(tiny_model(stage1_ckpt, ema_decay=1.0), RadarStub(batch, GRID), 1, tmp_path)
