@@ -2,6 +2,7 @@
 
 import csv
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -295,13 +296,19 @@ def test_table1_subset_diagnostics_masks_and_counts(tmp_path):
     assert rows["Radar2Shape"].split("|")[2:5] == [" **0.250 ± 0.010** ", " **0.900 ± 0.020** ", " 24 of 25 "]
     assert "| 0.000 ± 0.010 |" in rows["TMNet"]
     assert "Sampling: CD and F-score on 30,000 ground-truth and 30,000 predicted surface points, IoU on 100,000 occupancy points." in text
-    assert sorted(p.name for p in (out / "scores").iterdir()) == [f"{n}.csv" for n in names]
+    assert sorted(p.name for p in (out / "scores").iterdir()) == sorted(f"{n}.{e}" for n in names for e in ("csv", "json"))
     # runs that masked differently say so; a per-axis mask says "per axis"
     config = dict(cells, mask_rule="per_axis")
     (runs / "tmnet-partial" / "test" / "version_0" / "config.yaml").write_text(yaml.safe_dump(
         {"data": {"class_path": "data_modules.ShapeDataModule", "init_args": config}}))
     assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
     assert "partial (masks differ: 70 % of cells masked, 70 % per axis): IoU" in (out / "t.md").read_text()
+    # with the run folders gone, what the report kept beside the scores still says what was masked and sampled
+    shutil.rmtree(runs)
+    assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
+    text = (out / "t.md").read_text()
+    assert "partial (masks differ: 70 % of cells masked, 70 % per axis): IoU" in text
+    assert "Sampling: CD and F-score on 30,000 ground-truth and 30,000 predicted surface points" in text
 
 
 def test_masking_from_run_names_without_config():
@@ -340,7 +347,6 @@ def test_lost_run_folders_are_scored_from_the_scores_the_report_kept(tmp_path, c
     """runs/ is machine-local: a run whose folder is gone comes back from the report's own per-shape
     scores, with the same means, spreads, counts and seed merge; without either the report refuses."""
     import math
-    import shutil
 
     matrix = {"model": {"unet": {}}, "obs": {"full": {}}, "noise": {"low": {}}, "seed": {"seed0": {}, "seed1": {}}}
     path = tmp_path / "rollsym.yaml"
@@ -373,8 +379,15 @@ def test_lost_run_folders_are_scored_from_the_scores_the_report_kept(tmp_path, c
     assert float(row["full/iou_s_seeds_std"]) == pytest.approx(math.sqrt(0.02))
     assert ((out / "table.csv").read_text(), (out / "diagnostics.csv").read_text()) == before
     text = (out / "table.md").read_text()
-    assert "| unet-full-low-seed0 | archived |" in text and "1 more scored from the per-shape scores" in text
-    assert sorted(p.name for p in (out / "scores").iterdir()) == ["unet-full-low-seed0.csv", "unet-full-low-seed1.csv"]
+    # the record the report kept beside the scores stands in for the folder's: its wall time survives
+    assert "| unet-full-low-seed0 | archived |  |  |  | 2.0 |" in text and "1 more scored from the per-shape scores" in text
+    assert "wall time not known" not in text and "summed wall time of the runs 0.1 min" in text
+    assert sorted(p.name for p in (out / "scores").iterdir()) == [
+        "unet-full-low-seed0.csv", "unet-full-low-seed0.json", "unet-full-low-seed1.csv", "unet-full-low-seed1.json"]
+    # a kept score file without its record (an older report) still scores; the wall time is then unknown
+    (out / "scores" / "unet-full-low-seed0.json").unlink()
+    assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
+    assert "wall time not known for 1" in (out / "table.md").read_text()
     # neither a run folder nor kept scores: one clear error line
     shutil.rmtree(tmp_path / "runs")
     assert cli.main(["report", "--grid", str(path), "--out", str(tmp_path / "fresh")]) == 2

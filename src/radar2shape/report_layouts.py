@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 from dataclasses import replace
 
-from radar2shape.reporting import (SEED_SUFFIX, Cell, Column, Layout, collect_cells, markdown_table, pooled, read_scores, run_notes,
-                                   runs_table, score_keys, scores_file, write_csv)
+from radar2shape.reporting import (ARCHIVED, SEED_SUFFIX, Cell, Column, Layout, collect_cells, markdown_table, pooled, provenance,
+                                   read_scores, run_notes, runs_table, score_keys, scores_file, test_config, write_csv)
 
 CHAMFER = Column("chamfer_l2_x1e3", "CD x10^3 ↓", higher_is_better=False, digits=2)
 IOU = Column("iou", "IoU ↑", higher_is_better=True)
@@ -66,15 +66,11 @@ GROUP_TITLES = {
 
 
 # ---- what a run masked ------------------------------------------------------------------------
-def test_config(run_dir: Path) -> dict | None:
-    """The ``data.init_args`` and ``class_path`` of a run's saved test config (None without one)."""
-    import yaml
-
-    configs = sorted(run_dir.glob("test/**/config.yaml"))
-    if not configs:
-        return None
-    data = (yaml.safe_load(configs[-1].read_text()) or {}).get("data") or {}
-    return {"class_path": str(data.get("class_path", "")), **(data.get("init_args") or {})}
+def cell_test_config(cell: Cell) -> dict | None:
+    """A run's test data config: from its folder, or for an archived run from what the report kept."""
+    if cell.state == ARCHIVED:
+        return cell.record.get("test_data")
+    return test_config(cell.run_dir) if cell.run_dir != Path() else None
 
 
 def masking(cell: Cell, group: str) -> str | None:
@@ -84,7 +80,7 @@ def masking(cell: Cell, group: str) -> str | None:
     ``test_keep``: the kept fraction); without one, from the run's group name (``cells`` / ``axis``
     and a percentage, e.g. ``partial70cells``); "mask not recorded" when neither says.
     """
-    config = test_config(cell.run_dir) if cell.run_dir != Path() else None
+    config = cell_test_config(cell)
     if config is not None and "observability" in config:
         if config["observability"] != "partial":
             return None
@@ -109,7 +105,7 @@ def group_title(titles: dict[str, str]):
 
     def describe(group: str, cells: list[Cell]) -> str:
         base = titles.get(group, group)
-        found = {masking(cell, group) for cell in cells if cell.state in ("done", "tested")} - {None}  # runs not done say nothing
+        found = {masking(cell, group) for cell in cells if cell.state in ("done", "tested", ARCHIVED)} - {None}  # runs not done say nothing
         if not found:
             return base
         return f"{base} ({found.pop()})" if len(found) == 1 else f"{base} (masks differ: {', '.join(sorted(found))})"
@@ -151,13 +147,15 @@ def subset_cells(cells: list[Cell]) -> tuple[list[Cell], int | None]:
 
 
 def copy_scores(cells: list[Cell], folder: Path) -> int:
-    """Each finished or archived run's per-shape test scores as ``folder/<run>.csv``; returns how many."""
+    """Each finished or archived run's per-shape test scores as ``folder/<run>.csv``, with its
+    :func:`provenance` as ``folder/<run>.json``; returns how many."""
     copied = 0
     for cell in cells:
         path = scores_file(cell)
         if path is not None:
             folder.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(path, folder / f"{cell.name}.csv")
+            (folder / f"{cell.name}.json").write_text(json.dumps(provenance(cell), indent=1, sort_keys=True))
             copied += 1
     return copied
 
@@ -321,7 +319,7 @@ def radar_shapes_figure(cells: list[Cell], layout: Layout, path: Path, n_shapes:
 def stage1_rows(cells: list[Cell], layout: Layout) -> list[tuple[str, dict]]:
     """``(run name, test metrics)`` of the finished auxiliary runs (no row/group in their name) that scored IoU."""
     return [(cell.name, cell.metrics) for cell in cells
-            if layout.split(cell.name) is None and cell.state == "done" and "iou_mean" in cell.metrics]
+            if layout.split(cell.name) is None and cell.state in ("done", ARCHIVED) and "iou_mean" in cell.metrics]
 
 
 def write_table1(grid, out: Path, layout: Layout, shapes: int, archive: Path | None = None) -> Path:
@@ -344,6 +342,9 @@ def write_table1(grid, out: Path, layout: Layout, shapes: int, archive: Path | N
         done = [c for c in cells if c.state == "done" and (layout.split(c.name) or {}).get("group") == group]
         title = layout.group_title(group, [c for c in cells if (layout.split(c.name) or {}).get("group") == group])
         figure = model_rows_figure(done, layout, out / f"{name}_{group}.png", shapes, title)
+        kept = archive.parent / f"{name}_{group}.png" if archive is not None else None
+        if figure is None and kept is not None and kept.is_file():  # its runs are archived: the last drawing stands
+            figure = kept
         figures += [figure] if figure else []
     text = [
         f"# {name}: reconstruction from radar",
@@ -423,7 +424,7 @@ def noise_level(cells: list[Cell], section: str) -> str:
     found = set()
     for cell in cells:
         parts = SEED_SUFFIX.sub("", cell.name).split("-")
-        config = test_config(cell.run_dir) if len(parts) == 3 and parts[2] == section and cell.run_dir != Path() else None
+        config = cell_test_config(cell) if len(parts) == 3 and parts[2] == section else None
         if config is not None and "test_noise_db" in config:
             reference = " re peak" if config.get("noise_reference") == "peak" else " dBsm" if config.get("noise_reference") == "absolute" else ""
             found.add(f"{float(config['test_noise_db']):g} dB{reference}".replace("dB dBsm", "dBsm"))

@@ -173,12 +173,37 @@ def score_keys(rows: list[dict]) -> list[str]:
     return [k for k in (rows[0] if rows else {}) if k not in ("index", "label")]
 
 
+def test_config(run_dir: Path) -> dict | None:
+    """The ``data.init_args`` and ``class_path`` of a run's saved test config (None without one)."""
+    import yaml
+
+    configs = sorted(run_dir.glob("test/**/config.yaml"))
+    if not configs:
+        return None
+    data = (yaml.safe_load(configs[-1].read_text()) or {}).get("data") or {}
+    return {"class_path": str(data.get("class_path", "")), **(data.get("init_args") or {})}
+
+
+POINT_COUNTS = ("num_eval_points", "num_pred_points", "num_occ_points")  # the metric sampling a test logged
+
+
+def provenance(cell: Cell) -> dict:
+    """What a report keeps beside a run's per-shape scores (``scores/<run>.json``) so that the run
+    reads the same once its folder is gone: its ``done`` record (command, wall times), the metric
+    point counts and the test data config (what the mask hid)."""
+    if cell.state == ARCHIVED:
+        return {key: cell.record[key] for key in ("record", "metrics", "test_data") if key in cell.record}
+    return {"record": cell.record, "metrics": {k: cell.metrics[k] for k in POINT_COUNTS if k in cell.metrics},
+            "test_data": test_config(cell.run_dir)}
+
+
 def read_cell(name: str, run_dir: Path, archive: Path | None = None) -> Cell:
     """The state, ``done`` record and test metrics of one run folder.
 
     A run without a folder whose per-shape scores ``archive/<name>.csv`` a previous report kept
     (runs/ lives on one machine, reports/ in the repository) is re-pooled from those scores: the
-    same means, spreads and counts as its test; only its wall time and figures are gone.
+    same means, spreads and counts as its test; its record, point counts and test config come from
+    ``archive/<name>.json`` where the report kept one (:func:`provenance`); its figures are gone.
     """
     if (run_dir / "done").is_file():
         metrics_file = run_dir / "metrics.json"
@@ -189,7 +214,10 @@ def read_cell(name: str, run_dir: Path, archive: Path | None = None) -> Cell:
     kept = archive / f"{name}.csv" if archive is not None else None
     if kept is not None and kept.is_file() and not run_dir.exists():
         rows = read_scores(kept)
-        return Cell(name, run_dir, ARCHIVED, {"scores": str(kept)}, pooled(rows, score_keys(rows)))
+        side = kept.with_suffix(".json")
+        kept_info = json.loads(side.read_text()) if side.is_file() else {}
+        record = {**kept_info.get("record", {}), **kept_info, "scores": str(kept)}
+        return Cell(name, run_dir, ARCHIVED, record, {**pooled(rows, score_keys(rows)), **kept_info.get("metrics", {})})
     return Cell(name, run_dir, "missing")
 
 
@@ -236,8 +264,10 @@ def runs_table(cells: list[Cell]) -> str:
     lines += ["", f"{done} of {len(swept)} runs finished; summed wall time of the runs {total / 60:.1f} min "
               "(fit + test, excluding the prepare steps)."]
     if archived:
+        unknown = sum(c.state == ARCHIVED and "wall_seconds" not in c.record for c in swept)
         lines[-1] += (f" {archived} more scored from the per-shape scores an earlier report kept (state "
-                      f"`{ARCHIVED}`: run folder not on this machine, wall time not known).")
+                      f"`{ARCHIVED}`: run folder not on this machine; its record as that report kept it"
+                      + (f", wall time not known for {unknown}" if unknown else "") + ").")
     return "\n".join(lines)
 
 
