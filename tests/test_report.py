@@ -305,8 +305,11 @@ def test_table1_subset_diagnostics_masks_and_counts(tmp_path):
     assert "partial (masks differ: 70 % of cells masked, 70 % per axis): IoU" in (out / "t.md").read_text()
     # with the run folders gone, what the report kept beside the scores still says what was masked and sampled
     shutil.rmtree(runs)
+    assert "![t_full]" not in (out / "t.md").read_text()  # no reconstructions saved: nothing drawn
+    (out / "t_full.png").write_bytes(b"drawn by an earlier report")
     assert cli.main(["report", "--grid", str(path), "--out", str(out)]) == 0
     text = (out / "t.md").read_text()
+    assert "![t_full](t_full.png)" in text and "![t_partial]" not in text  # the last drawing of archived runs stands
     assert "partial (masks differ: 70 % of cells masked, 70 % per axis): IoU" in text
     assert "Sampling: CD and F-score on 30,000 ground-truth and 30,000 predicted surface points" in text
 
