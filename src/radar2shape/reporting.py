@@ -141,7 +141,7 @@ class Cell:
 
     name: str
     run_dir: Path
-    state: str  # done | failed | missing | tested (outside the sweep)
+    state: str  # done | failed | missing | tested (outside the sweep) | archived (scored from a report's kept scores)
     record: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
 
@@ -203,7 +203,7 @@ def read_cell(name: str, run_dir: Path, archive: Path | None = None) -> Cell:
     A run without a folder whose per-shape scores ``archive/<name>.csv`` a previous report kept
     (runs/ lives on one machine, reports/ in the repository) is re-pooled from those scores: the
     same means, spreads and counts as its test; its record, point counts and test config come from
-    ``archive/<name>.json`` where the report kept one (:func:`provenance`); its figures are gone.
+    ``archive/<name>.json`` where the report kept one (:func:`provenance`); figures cannot be redrawn.
     """
     if (run_dir / "done").is_file():
         metrics_file = run_dir / "metrics.json"
