@@ -50,6 +50,8 @@ SUBSET_SIZE, SUBSET_SEED = 20, 0  # the paper's "20 random held-out meshes"
 MODEL_TITLES = {
     "radar2shape": "Radar2Shape",
     "radar2shape_paper": "Radar2Shape, as in the paper",
+    "radar2shape_s1slow": "Radar2Shape, Stage 1 lr halved every 1,400 steps",
+    "radar2shape_s1wide": "Radar2Shape, wider Stage 1",
     "diffusion_sdf": "Diffusion-SDF",
     "tmnet": "TMNet",
     "list": "LIST",
