@@ -21,4 +21,10 @@ PY=${PY:-.venv/bin/python}
   --pair "Stage 1 60 - 40 epochs (Stage 2 40 epochs), partial" $E40/radar2shape-partial-seed0.csv $S40/radar2shape-partial-seed0.csv \
   --pair "tuned - nearest neighbour, full" $S/radar2shape-full-seed0.csv $S/nearest-full.csv \
   --pair "tuned - nearest neighbour, partial" $S/radar2shape-partial-seed0.csv $S/nearest-partial.csv \
-  --pair "tuned - TMNet, full" $S/radar2shape-full-seed0.csv $S/tmnet-full.csv
+  --pair "tuned - TMNet, full" $S/radar2shape-full-seed0.csv $S/tmnet-full.csv \
+  --pair "Stage 1: lr halved every 1,400 steps - every 700" $S/radar2shape_stage1_slowdecay.csv $S/radar2shape_stage1.csv \
+  --pair "Stage 1: wide - grid's" $S/radar2shape_stage1_wide.csv $S/radar2shape_stage1.csv \
+  --pair "Stage 1: wide - lr halved every 1,400 steps" $S/radar2shape_stage1_wide.csv $S/radar2shape_stage1_slowdecay.csv \
+  --pair "Stage 2 on the slow-decay Stage 1 - on the grid's, full" $S/radar2shape_s1slow-full.csv $S/radar2shape-full-seed0.csv \
+  --pair "Stage 2 on the wide Stage 1 - on the grid's, full" $S/radar2shape_s1wide-full.csv $S/radar2shape-full-seed0.csv \
+  --pair "Stage 2 on the wide Stage 1 - nearest neighbour, full" $S/radar2shape_s1wide-full.csv $S/nearest-full.csv
