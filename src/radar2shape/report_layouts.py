@@ -50,8 +50,8 @@ SUBSET_SIZE, SUBSET_SEED = 20, 0  # the paper's "20 random held-out meshes"
 MODEL_TITLES = {
     "radar2shape": "Radar2Shape",
     "radar2shape_paper": "Radar2Shape, as in the paper",
-    "radar2shape_s1slow": "Radar2Shape, Stage 1 lr halved every 1,400 steps",
-    "radar2shape_s1wide": "Radar2Shape, wider Stage 1",
+    "radar2shape_s1slow": "Radar2Shape, slow-decay Stage 1",
+    "radar2shape_s1wide": "Radar2Shape, wide Stage 1",
     "diffusion_sdf": "Diffusion-SDF",
     "tmnet": "TMNet",
     "list": "LIST",
@@ -341,12 +341,13 @@ def write_table1(grid, out: Path, layout: Layout, shapes: int, archive: Path | N
     groups = list(dict.fromkeys(w["group"] for c in cells if (w := layout.split(c.name))))
     figures = []
     for group in groups:
-        done = [c for c in cells if c.state == "done" and (layout.split(c.name) or {}).get("group") == group]
-        title = layout.group_title(group, [c for c in cells if (layout.split(c.name) or {}).get("group") == group])
-        figure = model_rows_figure(done, layout, out / f"{name}_{group}.png", shapes, title)
+        in_group = [c for c in cells if (layout.split(c.name) or {}).get("group") == group]
         kept = archive.parent / f"{name}_{group}.png" if archive is not None else None
-        if figure is None and kept is not None and kept.is_file():  # its runs are archived: the last drawing stands
-            figure = kept
+        if kept is not None and kept.is_file() and any(c.state == ARCHIVED for c in in_group):
+            figure = kept  # rows of archived runs cannot be redrawn: the last drawing stands, not one without them
+        else:
+            figure = model_rows_figure([c for c in in_group if c.state == "done"], layout, out / f"{name}_{group}.png",
+                                       shapes, layout.group_title(group, in_group))
         figures += [figure] if figure else []
     text = [
         f"# {name}: reconstruction from radar",
