@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 from dataclasses import replace
 
-from radar2shape.reporting import (ARCHIVED, SEED_SUFFIX, Cell, Column, Layout, collect_cells, markdown_table, pooled, provenance,
-                                   read_scores, run_notes, runs_table, score_keys, scores_file, test_config, write_csv)
+from radar2shape.reporting import (ARCHIVED, SEED_SUFFIX, Cell, Column, Layout, cell_test_config, collect_cells, markdown_table,
+                                   pooled, provenance, read_scores, run_notes, runs_table, score_keys, scores_file, write_csv)
 
 CHAMFER = Column("chamfer_l2_x1e3", "CD x10^3 ↓", higher_is_better=False, digits=2)
 IOU = Column("iou", "IoU ↑", higher_is_better=True)
@@ -68,13 +68,6 @@ GROUP_TITLES = {
 
 
 # ---- what a run masked ------------------------------------------------------------------------
-def cell_test_config(cell: Cell) -> dict | None:
-    """A run's test data config: from its folder, or for an archived run from what the report kept."""
-    if cell.state == ARCHIVED:
-        return cell.record.get("test_data")
-    return test_config(cell.run_dir) if cell.run_dir != Path() else None
-
-
 def masking(cell: Cell, group: str) -> str | None:
     """What the run's test mask hid, e.g. "70 % of cells masked", "70 % per axis"; None when full.
 

@@ -187,14 +187,20 @@ def test_config(run_dir: Path) -> dict | None:
 POINT_COUNTS = ("num_eval_points", "num_pred_points", "num_occ_points")  # the metric sampling a test logged
 
 
+def cell_test_config(cell: Cell) -> dict | None:
+    """A run's test data config: from its folder, or for an archived run from what the report kept."""
+    if cell.state == ARCHIVED:
+        return cell.record.get("test_data")
+    return test_config(cell.run_dir) if cell.run_dir != Path() else None
+
+
 def provenance(cell: Cell) -> dict:
     """What a report keeps beside a run's per-shape scores (``scores/<run>.json``) so that the run
     reads the same once its folder is gone: its ``done`` record (command, wall times), the metric
     point counts and the test data config (what the mask hid)."""
-    if cell.state == ARCHIVED:
-        return {key: cell.record[key] for key in ("record", "metrics", "test_data") if key in cell.record}
-    return {"record": cell.record, "metrics": {k: cell.metrics[k] for k in POINT_COUNTS if k in cell.metrics},
-            "test_data": test_config(cell.run_dir)}
+    return {"record": {k: v for k, v in cell.record.items() if k not in ("scores", "test_data")},
+            "metrics": {k: cell.metrics[k] for k in POINT_COUNTS if k in cell.metrics},
+            "test_data": cell_test_config(cell)}
 
 
 def read_cell(name: str, run_dir: Path, archive: Path | None = None) -> Cell:
@@ -216,7 +222,7 @@ def read_cell(name: str, run_dir: Path, archive: Path | None = None) -> Cell:
         rows = read_scores(kept)
         side = kept.with_suffix(".json")
         kept_info = json.loads(side.read_text()) if side.is_file() else {}
-        record = {**kept_info.get("record", {}), **kept_info, "scores": str(kept)}
+        record = {**kept_info.get("record", {}), "test_data": kept_info.get("test_data"), "scores": str(kept)}
         return Cell(name, run_dir, ARCHIVED, record, {**pooled(rows, score_keys(rows)), **kept_info.get("metrics", {})})
     return Cell(name, run_dir, "missing")
 
