@@ -1,7 +1,7 @@
 """Learning curves of a grid's training runs: validation score and training loss against step.
 
     python scripts/learning_curves.py --grid table1-medium [--metric val/iou_mean] [--out reports/table1-medium] \
-        [--runs FOLDER]
+        [--runs FOLDER] [--only RUN ...]
 
 Reads ``<out_dir>/<run>/fit/version_0/metrics.csv`` (Lightning's CSV logger) of every fitted run
 of the grid (``--runs``: the run folders of an earlier grid state, moved aside, instead of
@@ -34,16 +34,19 @@ def read_curve(path: Path, metric: str, loss: str = "train/loss_epoch") -> list[
              "loss": losses.get(r["epoch"], math.nan)} for r in rows if r.get(metric)]
 
 
-def grid_curves(grid_name: str, metric: str, runs: Path | None = None) -> dict[str, list[dict]]:
-    """Curves of the grid's fitted runs that have a metrics log under ``runs`` (default the grid's
-    ``out_dir``), in grid order."""
+def grid_curves(grid_name: str, metric: str, runs: Path | None = None, only: list[str] | None = None) -> dict[str, list[dict]]:
+    """Curves of the grid's fitted runs (``only``: of these names) that have a metrics log under
+    ``runs`` (default the grid's ``out_dir``), in grid order."""
     from radar2shape.sweep import load_grid
 
     grid = load_grid(grid_name)
     runs = runs or grid.out_dir
     curves = {}
+    unknown = sorted(set(only or ()) - {run.name for run in grid.runs})
+    if unknown:
+        raise UserInputError(f"--only: {', '.join(unknown)}: not runs of grid {grid.path}")
     for run in grid.runs:
-        if run.command != "fit":
+        if run.command != "fit" or (only and run.name not in only):
             continue
         logs = sorted((runs / run.name / "fit").glob("version_*/metrics.csv"))
         if logs:
@@ -85,12 +88,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--metric", default="val/iou_mean", help="metrics.csv column (default val/iou_mean)")
     parser.add_argument("--out", type=Path, help="output folder (default reports/<grid>)")
     parser.add_argument("--runs", type=Path, help="folder of the run folders (default the grid's out_dir)")
+    parser.add_argument("--only", nargs="+", help="these runs of the grid only (default every fitted run)")
     args = parser.parse_args(argv)
     if args.runs is not None and not args.runs.is_dir():
         print(f"error: --runs: {args.runs} is not a folder", file=sys.stderr)
         return 2
     try:
-        curves = grid_curves(args.grid, args.metric, args.runs)
+        curves = grid_curves(args.grid, args.metric, args.runs, args.only)
     except UserInputError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

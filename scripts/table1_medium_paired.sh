@@ -27,4 +27,15 @@ PY=${PY:-.venv/bin/python}
   --pair "Stage 1: wide - lr halved every 1,400 steps" $S/radar2shape_stage1_wide.csv $S/radar2shape_stage1_slowdecay.csv \
   --pair "Stage 2 on the slow-decay Stage 1 - on the grid's, full" $S/radar2shape_s1slow-full.csv $S/radar2shape-full-seed0.csv \
   --pair "Stage 2 on the wide Stage 1 - on the grid's, full" $S/radar2shape_s1wide-full.csv $S/radar2shape-full-seed0.csv \
-  --pair "Stage 2 on the wide Stage 1 - nearest neighbour, full" $S/radar2shape_s1wide-full.csv $S/nearest-full.csv
+  --pair "Stage 2 on the wide Stage 1 - nearest neighbour, full" $S/radar2shape_s1wide-full.csv $S/nearest-full.csv \
+  --pair "Stage 1: Radar2Shape's (three levels) - Diffusion-SDF's (one level)" $S/radar2shape_stage1.csv $S/diffusion_sdf_stage1.csv \
+  --pair "tuned - Diffusion-SDF, full" $S/radar2shape-full-seed0.csv $S/diffusion_sdf-full-seed0.csv \
+  --pair "tuned - Diffusion-SDF, partial" $S/radar2shape-partial-seed0.csv $S/diffusion_sdf-partial-seed0.csv \
+  --pair "tuned at Diffusion-SDF's budget (40 epochs, last weights) - Diffusion-SDF, full" $E40/radar2shape-full-seed0.csv $S/diffusion_sdf-full-seed0.csv \
+  --pair "tuned at Diffusion-SDF's budget (40 epochs, last weights) - Diffusion-SDF, partial" $E40/radar2shape-partial-seed0.csv $S/diffusion_sdf-partial-seed0.csv \
+  --pair "Diffusion-SDF - TMNet, full" $S/diffusion_sdf-full-seed0.csv $S/tmnet-full.csv \
+  --pair "TMNet - LIST, full" $S/tmnet-full.csv $S/list-full.csv \
+  --pair "Diffusion-SDF - LIST, full" $S/diffusion_sdf-full-seed0.csv $S/list-full.csv \
+  --pair "Diffusion-SDF - LIST, partial" $S/diffusion_sdf-partial-seed0.csv $S/list-partial.csv \
+  --pair "tuned - LIST, full" $S/radar2shape-full-seed0.csv $S/list-full.csv \
+  --pair "tuned - LIST, partial" $S/radar2shape-partial-seed0.csv $S/list-partial.csv

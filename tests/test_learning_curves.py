@@ -70,3 +70,17 @@ def test_runs_folder_replaces_the_grids_out_dir(tmp_path, capsys):
     assert "| 1 | 125 | 0.2500 | 0.2 |" in (out / "learning_curves.md").read_text()
     assert learning_curves.main(["--grid", str(grid), "--runs", str(tmp_path / "nowhere")]) == 2
     assert capsys.readouterr().err.strip().startswith("error: --runs:")
+
+
+def test_only_keeps_the_named_runs_and_rejects_unknown_names(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    write_run(runs, "a", LOG)
+    write_run(runs, "b", LOG)
+    grid = tmp_path / "g.yaml"
+    grid.write_text(f"out_dir: {runs}\nruns:\n  - {{name: a}}\n  - {{name: b}}\n")
+    out = tmp_path / "o"
+    assert learning_curves.main(["--grid", str(grid), "--out", str(out), "--only", "b"]) == 0
+    text = (out / "learning_curves.md").read_text()
+    assert "## b" in text and "## a" not in text
+    assert learning_curves.main(["--grid", str(grid), "--out", str(out), "--only", "b", "c"]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == f"error: --only: c: not runs of grid {grid}"
