@@ -48,9 +48,9 @@ def grid_curves(grid_name: str, metric: str, runs: Path | None = None, only: lis
     for run in grid.runs:
         if run.command != "fit" or (only and run.name not in only):
             continue
-        logs = sorted((runs / run.name / "fit").glob("version_*/metrics.csv"))
-        if logs:
-            curves[run.name] = read_curve(logs[-1], metric)
+        logs = sorted((runs / run.name / "fit").glob("version_*/metrics.csv"), key=lambda p: int(p.parent.name.split("_")[1]))
+        if logs:  # a resumed fit logs each sitting in its own version_<k>: one curve, in order
+            curves[run.name] = [point for log in logs for point in read_curve(log, metric)]
     return curves
 
 

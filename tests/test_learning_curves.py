@@ -84,3 +84,15 @@ def test_only_keeps_the_named_runs_and_rejects_unknown_names(tmp_path, capsys):
     assert "## b" in text and "## a" not in text
     assert learning_curves.main(["--grid", str(grid), "--out", str(out), "--only", "b", "c"]) == 2
     assert capsys.readouterr().err.strip().splitlines()[-1] == f"error: --only: c: not runs of grid {grid}"
+
+
+def test_a_resumed_fit_is_one_curve_over_its_sittings(tmp_path):
+    runs = tmp_path / "runs"
+    write_run(runs, "a", "epoch,step,val/iou_mean\n1,125,0.25\n")
+    later = runs / "a" / "fit" / "version_1"
+    later.mkdir(parents=True)
+    (later / "metrics.csv").write_text("epoch,step,val/iou_mean\n3,251,0.55\n")
+    grid = tmp_path / "g.yaml"
+    grid.write_text(f"out_dir: {runs}\nruns:\n  - {{name: a}}\n")
+    curve = learning_curves.grid_curves(str(grid), "val/iou_mean")["a"]
+    assert [(p["step"], p["value"]) for p in curve] == [(125, 0.25), (251, 0.55)]

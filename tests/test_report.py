@@ -395,3 +395,14 @@ def test_lost_run_folders_are_scored_from_the_scores_the_report_kept(tmp_path, c
     shutil.rmtree(tmp_path / "runs")
     assert cli.main(["report", "--grid", str(path), "--out", str(tmp_path / "fresh")]) == 2
     assert "holds no per-shape scores" in capsys.readouterr().err
+
+
+def test_runs_table_says_when_a_fit_was_resumed(tmp_path):
+    from radar2shape.reporting import Cell, runs_table
+
+    resumed = Cell("a-full", tmp_path, "done", {"command": "fit", "fit_seconds": 5.0, "wall_seconds": 6.0,
+                                                "resumed_from": "fit/version_0/checkpoints/last.ckpt"})
+    whole = Cell("b-full", tmp_path, "done", {"command": "fit", "fit_seconds": 9.0, "wall_seconds": 10.0})
+    lines = runs_table([resumed, whole]).splitlines()
+    assert lines[2] == "| a-full | done | fit (resumed: fit s of the last sitting) | 5.0 |  | 6.0 |"
+    assert lines[3] == "| b-full | done | fit | 9.0 |  | 10.0 |"

@@ -4,6 +4,7 @@ import json
 import os
 from pathlib import Path
 
+import lightning as L
 import pytest
 import torch
 import yaml
@@ -310,3 +311,65 @@ def test_rollsym_report_shows_what_noise_costs_over_seed_means(tmp_path):
     text = write_report(sweep.load_grid(grid_path), tmp_path / "report").read_text()
     assert "| Profile U-Net diffusion (ours) | 0.750 | 0.550 | +0.200 |" in text  # seed means 0.75 and 0.55
     assert "**0.750 ± 0.100** (seeds ± 0.071)" in text  # std of (0.8, 0.7), ddof 1
+
+
+class InterruptOnce(L.Callback):
+    """Ctrl+C at the start of epoch ``at_epoch``, the first time only (``flag`` remembers): the same
+    command then runs through, as a sitting cut short and resumed."""
+
+    def __init__(self, flag: str, at_epoch: int = 1) -> None:
+        self.flag, self.at_epoch = Path(flag), at_epoch
+
+    def on_train_epoch_start(self, trainer, pl_module) -> None:
+        if trainer.current_epoch == self.at_epoch and not self.flag.exists():
+            self.flag.touch()
+            raise KeyboardInterrupt
+
+
+def test_interrupted_fit_resumes_from_its_last_checkpoint(tmp_path, monkeypatch):
+    """Epoch 0 finishes and saves last.ckpt, Ctrl+C at epoch 1 (in a child: Lightning exits the
+    process); the rerun continues from that checkpoint instead of refitting epoch 0."""
+    import subprocess
+    import sys
+
+    interrupt = {"class_path": "tests.test_sweep.InterruptOnce", "init_args": {"flag": str(tmp_path / "interrupted")}}
+    overrides = {**TINY, "trainer.max_epochs": 2, "trainer.callbacks": [*SAVE_LAST, interrupt]}
+    grid_path = write_grid(tmp_path, configs=[TOY], overrides=overrides, runs=[{"name": "a"}], threads=1)
+    first = subprocess.run([sys.executable, "-m", "radar2shape.cli", "sweep", str(grid_path)], cwd=REPO,
+                           capture_output=True, text=True, timeout=240)
+    run_dir = tmp_path / "runs" / "a"
+    assert first.returncode != 0 and (tmp_path / "interrupted").exists(), first.stderr[-2000:]
+    assert not (run_dir / "done").exists() and not (run_dir / "failed").exists()
+    saved = run_dir / "fit" / "version_0" / "checkpoints" / "last.ckpt"
+    epoch0 = torch.load(saved, weights_only=False)
+    assert epoch0["epoch"] == 0 and epoch0["global_step"] > 0
+    assert sweep.resumable_checkpoint(sweep.load_grid(grid_path).runs[0], run_dir) == saved
+
+    real_main, calls = cli.main, []
+    monkeypatch.setattr(cli, "main", lambda args: calls.append(list(args)) or real_main(args))
+    assert run_sweep([grid_path]) == 0
+    assert [c[0] for c in calls] == ["fit", "test"] and calls[0][-1] == f"--ckpt_path={saved}"
+    record = json.loads((run_dir / "done").read_text())
+    assert record["resumed_from"] == "fit/version_0/checkpoints/last.ckpt"
+    final = torch.load(run_dir / record["checkpoint"], weights_only=False)
+    assert final["epoch"] == 1 and final["global_step"] == 2 * epoch0["global_step"]  # epoch 1 only was trained
+    assert (run_dir / "metrics.json").is_file()
+
+
+def test_a_changed_command_failed_run_or_cut_checkpoint_starts_over(tmp_path):
+    grid_path = write_grid(tmp_path, configs=[TOY], overrides=TINY, runs=[{"name": "a"}])
+    run = sweep.load_grid(grid_path).runs[0]
+    run_dir = tmp_path / "runs" / "a"
+    checkpoints = run_dir / "fit" / "version_0" / "checkpoints"
+    checkpoints.mkdir(parents=True)
+    torch.save({"state_dict": {}, "hyper_parameters": {}, "epoch": 0, "global_step": 3}, checkpoints / "last.ckpt")
+    (run_dir / "run.yaml").write_text(yaml.safe_dump({"name": "a", "fit": run.args(run_dir / "fit")}))
+    assert sweep.resumable_checkpoint(run, run_dir) == checkpoints / "last.ckpt"
+    (checkpoints / "last.ckpt").write_bytes((checkpoints / "last.ckpt").read_bytes()[:40])  # cut while written
+    assert sweep.resumable_checkpoint(run, run_dir) is None
+    torch.save({"state_dict": {}, "hyper_parameters": {}, "epoch": 0, "global_step": 3}, checkpoints / "last.ckpt")
+    (run_dir / "failed").write_text("Traceback ...")
+    assert sweep.resumable_checkpoint(run, run_dir) is None
+    (run_dir / "failed").unlink()
+    (run_dir / "run.yaml").write_text(yaml.safe_dump({"name": "a", "fit": ["--trainer.max_epochs=9"]}))
+    assert sweep.resumable_checkpoint(run, run_dir) is None

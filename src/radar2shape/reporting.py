@@ -261,6 +261,7 @@ def runs_table(cells: list[Cell]) -> str:
     for cell in cells:
         r = cell.record
         command = r.get("command", "fit" if "fit_seconds" in r else "")
+        command += " (resumed: fit s of the last sitting)" if r.get("resumed_from") else ""
         lines.append(f"| {cell.name} | {cell.state} | {command} | {r.get('fit_seconds', '')} | {r.get('test_seconds', '')} | {r.get('wall_seconds', '')} |")
     total = sum(c.record.get("wall_seconds", 0.0) for c in cells)
     lines.append(f"| **total** | | | | | **{total:.0f}** |")

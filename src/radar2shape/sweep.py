@@ -6,8 +6,10 @@ A grid file lists runs; each run is ``fit`` then (optionally) ``test`` through
 through a ``ckpt_path`` override). Every run owns a folder ``<out_dir>/<name>/`` holding the
 command it ran (``run.yaml``), the Lightning logs, config and checkpoint (``fit/``, ``test/``), the
 test metrics (``metrics.json``) and, written last and atomically, a ``done`` marker. Rerunning the
-grid skips runs with a ``done`` marker and restarts any other run from scratch, so a killed sweep
-resumes at the run it was in.
+grid skips runs with a ``done`` marker, resumes a fit that was interrupted (killed, not failed) from
+its last readable checkpoint when the grid still gives it the same command, and restarts any other
+run from scratch: a killed sweep, or a two-hour run cut by the end of a sitting, loses at most the
+epochs since the last checkpoint.
 
 Dependencies are paths: an override value under ``<out_dir>/<other run>/`` (a Stage-1 or PO
 checkpoint) makes the run depend on ``<other run>``, which must come earlier in the file (runs
@@ -296,23 +298,49 @@ def _test(run: Run, run_dir: Path, record: dict, extra: list[str]) -> None:
     _write_atomic(run_dir / "metrics.json", json.dumps(metrics, indent=2, sort_keys=True))
 
 
+def resumable_checkpoint(run: Run, run_dir: Path) -> Path | None:
+    """The newest readable ``last.ckpt`` of an interrupted fit that ran ``run``'s current command,
+    else None (no fit, a recorded failure, another command, no or a truncated checkpoint)."""
+    from radar2shape.checkpoints import load_checkpoint
+
+    recorded = run_dir / "run.yaml"
+    if run.command != "fit" or (run_dir / "failed").is_file() or not recorded.is_file():
+        return None
+    if (yaml.safe_load(recorded.read_text()) or {}).get("fit") != run.args(run_dir / "fit"):
+        return None
+    for checkpoint in sorted((run_dir / "fit").rglob("last.ckpt"), key=lambda p: p.stat().st_mtime, reverse=True):
+        try:
+            load_checkpoint(checkpoint, "a Lightning checkpoint")
+        except UserInputError:  # cut while being written
+            continue
+        return checkpoint
+    return None
+
+
 def execute(grid: Grid, run: Run) -> dict:
-    """Fit (and test) one run from scratch in its folder; returns what the ``done`` marker holds."""
+    """Fit (and test) one run in its folder, resuming an interrupted fit (:func:`resumable_checkpoint`),
+    else from scratch; returns what the ``done`` marker holds."""
     run_dir = grid.run_dir(run)
-    if run_dir.exists():
-        shutil.rmtree(run_dir)  # an unfinished run: its partial logs would confuse the next one
-    run_dir.mkdir(parents=True)
+    resume = resumable_checkpoint(run, run_dir) if run_dir.exists() else None
     args = run.args(run_dir / run.command)
-    _write_atomic(run_dir / "run.yaml", yaml.safe_dump({"name": run.name, "grid": str(grid.path), run.command: args}))
     record = {"name": run.name, "command": run.command}
+    if resume is not None:
+        record["resumed_from"] = str(resume.relative_to(run_dir))
+        shutil.rmtree(run_dir / "test", ignore_errors=True)  # a test cut short: its files would mix with the new one
+        print(f"[sweep] {run.name}: resuming from {resume}", flush=True)
+    else:
+        if run_dir.exists():
+            shutil.rmtree(run_dir)  # an unfinished run: its partial logs would confuse the next one
+        run_dir.mkdir(parents=True)
+        _write_atomic(run_dir / "run.yaml", yaml.safe_dump({"name": run.name, "grid": str(grid.path), run.command: args}))
     if run.command == "test":
         _test(run, run_dir, record, [])
         record["wall_seconds"] = record["test_seconds"]
         _write_atomic(run_dir / DONE, json.dumps(record, indent=2))
         return record
     start = time.perf_counter()
-    _cli("fit", args)
-    record["fit_seconds"] = round(time.perf_counter() - start, 2)
+    _cli("fit", args + ([f"--ckpt_path={resume}"] if resume is not None else []))
+    record["fit_seconds"] = round(time.perf_counter() - start, 2)  # of this sitting when resumed
     checkpoint = _last_checkpoint(run_dir / "fit")
     record["checkpoint"] = str(checkpoint.relative_to(run_dir))
     if grid.test:
