@@ -235,12 +235,18 @@ def is_done(run_dir: Path) -> bool:
     return (run_dir / DONE).is_file()
 
 
+def recorded_args(run_dir: Path, command: str) -> list[str] | None:
+    """The ``command`` arguments a run folder's ``run.yaml`` says it ran with (None without one)."""
+    recorded = run_dir / "run.yaml"
+    return (yaml.safe_load(recorded.read_text()) or {}).get(command) if recorded.is_file() else None
+
+
 def stale_because(grid: Grid, run: Run) -> str | None:
     """Why a finished run must be redone (the grid changed its command, or a dependency finished
     after it), else None."""
     run_dir = grid.run_dir(run)
-    recorded = run_dir / "run.yaml"
-    if recorded.is_file() and (yaml.safe_load(recorded.read_text()) or {}).get(run.command) != run.args(run_dir / run.command):
+    recorded = recorded_args(run_dir, run.command)
+    if recorded is not None and recorded != run.args(run_dir / run.command):
         return "its command in the grid changed"
     finished = (run_dir / DONE).stat().st_mtime_ns
     for need in grid.needs(run):
@@ -303,10 +309,9 @@ def resumable_checkpoint(run: Run, run_dir: Path) -> Path | None:
     else None (no fit, a recorded failure, another command, no or a truncated checkpoint)."""
     from radar2shape.checkpoints import load_checkpoint
 
-    recorded = run_dir / "run.yaml"
-    if run.command != "fit" or (run_dir / "failed").is_file() or not recorded.is_file():
+    if run.command != "fit" or (run_dir / "failed").is_file():
         return None
-    if (yaml.safe_load(recorded.read_text()) or {}).get("fit") != run.args(run_dir / "fit"):
+    if recorded_args(run_dir, "fit") != run.args(run_dir / "fit"):
         return None
     for checkpoint in sorted((run_dir / "fit").rglob("last.ckpt"), key=lambda p: p.stat().st_mtime, reverse=True):
         try:
