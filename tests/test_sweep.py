@@ -147,7 +147,13 @@ def test_killed_sweep_resumes_and_skips_finished_runs(tmp_path, monkeypatch):
     assert torch.get_num_threads() == threads  # the grid's `threads: 1` applied only while it ran
 
 
-SAVE_LAST = [{"class_path": "lightning.pytorch.callbacks.ModelCheckpoint", "init_args": {"save_last": True}}]
+def shipped_checkpoint_callback(name: str = "shape_metrics") -> dict:
+    """The ModelCheckpoint entry of conf/callbacks/NAME.yaml, the one every grid run uses."""
+    callbacks = yaml.safe_load((REPO / "conf" / "callbacks" / f"{name}.yaml").read_text())["trainer"]["callbacks"]
+    return next(c for c in callbacks if c["class_path"].endswith("ModelCheckpoint"))
+
+
+SAVE_LAST = [shipped_checkpoint_callback()]
 
 
 def chained_grid(tmp_path):
@@ -328,12 +334,15 @@ class InterruptOnce(L.Callback):
 
 def test_interrupted_fit_resumes_from_its_last_checkpoint(tmp_path, monkeypatch):
     """Epoch 0 finishes and saves last.ckpt, Ctrl+C at epoch 1 (in a child: Lightning exits the
-    process); the rerun continues from that checkpoint instead of refitting epoch 0."""
+    process); the rerun continues from that checkpoint instead of refitting epoch 0. Validation is
+    sparse (every 5 epochs, as the long grid rows): the shipped callback still saves every epoch."""
     import subprocess
     import sys
 
+    assert shipped_checkpoint_callback("profile_metrics") == shipped_checkpoint_callback("shape_metrics")
     interrupt = {"class_path": "tests.test_sweep.InterruptOnce", "init_args": {"flag": str(tmp_path / "interrupted")}}
-    overrides = {**TINY, "trainer.max_epochs": 2, "trainer.callbacks": [*SAVE_LAST, interrupt]}
+    overrides = {**TINY, "trainer.max_epochs": 2, "trainer.check_val_every_n_epoch": 5,
+                 "trainer.callbacks": [*SAVE_LAST, interrupt]}
     grid_path = write_grid(tmp_path, configs=[TOY], overrides=overrides, runs=[{"name": "a"}], threads=1)
     first = subprocess.run([sys.executable, "-m", "radar2shape.cli", "sweep", str(grid_path)], cwd=REPO,
                            capture_output=True, text=True, timeout=240)
