@@ -22,6 +22,7 @@ PY=${PY:-.venv/bin/python}
   --pair "tuned - nearest neighbour, full" $S/radar2shape-full-seed0.csv $S/nearest-full.csv \
   --pair "tuned - nearest neighbour, partial" $S/radar2shape-partial-seed0.csv $S/nearest-partial.csv \
   --pair "tuned - TMNet, full" $S/radar2shape-full-seed0.csv $S/tmnet-full.csv \
+  --pair "tuned - TMNet, partial" $S/radar2shape-partial-seed0.csv $S/tmnet-partial.csv \
   --pair "Stage 1: lr halved every 1,400 steps - every 700" $S/radar2shape_stage1_slowdecay.csv $S/radar2shape_stage1.csv \
   --pair "Stage 1: wide - grid's" $S/radar2shape_stage1_wide.csv $S/radar2shape_stage1.csv \
   --pair "Stage 1: wide - lr halved every 1,400 steps" $S/radar2shape_stage1_wide.csv $S/radar2shape_stage1_slowdecay.csv \
@@ -34,7 +35,9 @@ PY=${PY:-.venv/bin/python}
   --pair "tuned at Diffusion-SDF's budget (40 epochs, last weights) - Diffusion-SDF, full" $E40/radar2shape-full-seed0.csv $S/diffusion_sdf-full-seed0.csv \
   --pair "tuned at Diffusion-SDF's budget (40 epochs, last weights) - Diffusion-SDF, partial" $E40/radar2shape-partial-seed0.csv $S/diffusion_sdf-partial-seed0.csv \
   --pair "Diffusion-SDF - TMNet, full" $S/diffusion_sdf-full-seed0.csv $S/tmnet-full.csv \
+  --pair "Diffusion-SDF - TMNet, partial" $S/diffusion_sdf-partial-seed0.csv $S/tmnet-partial.csv \
   --pair "TMNet - LIST, full" $S/tmnet-full.csv $S/list-full.csv \
+  --pair "TMNet - LIST, partial" $S/tmnet-partial.csv $S/list-partial.csv \
   --pair "Diffusion-SDF - LIST, full" $S/diffusion_sdf-full-seed0.csv $S/list-full.csv \
   --pair "Diffusion-SDF - LIST, partial" $S/diffusion_sdf-partial-seed0.csv $S/list-partial.csv \
   --pair "tuned - LIST, full" $S/radar2shape-full-seed0.csv $S/list-full.csv \
