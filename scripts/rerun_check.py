@@ -62,7 +62,8 @@ def rerun(args: list[str], epochs: int, threads: int, root: Path) -> Path:
     env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads), "WANDB_MODE": "disabled"}
     done = subprocess.run(command, cwd=REPO, env=env, capture_output=True, text=True)
     if done.returncode != 0:
-        raise RuntimeError(f"the rerun failed (exit {done.returncode}): {done.stderr.strip().splitlines()[-1:]}")
+        last = (done.stderr.strip().splitlines() or ["no output"])[-1]
+        raise RuntimeError(f"the rerun failed (exit {done.returncode}): {last}")
     return root / "version_0" / "metrics.csv"
 
 

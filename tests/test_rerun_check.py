@@ -63,3 +63,13 @@ def test_a_folder_that_is_not_a_fitted_run_is_one_error_line(tmp_path, capsys):
     assert len(err) == 1 and "run.yaml" in err[0] and "no recorded fit command" in err[0]
     assert rerun_check.main(["--run", str(tmp_path), "--epochs", "0"]) == 2
     assert "--epochs and --threads must be >= 1" in capsys.readouterr().err
+
+
+def test_a_rerun_that_fails_is_one_error_line(tmp_path, capsys):
+    (tmp_path / "run.yaml").write_text(yaml.safe_dump({"fit": ["--config=conf/missing.yaml"]}))
+    log = tmp_path / "fit" / "version_0" / "metrics.csv"
+    log.parent.mkdir(parents=True)
+    log.write_text("epoch,step,train/loss_step\n0,0,0.5\n")
+    assert rerun_check.main(["--run", str(tmp_path), "--epochs", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["error: the rerun failed (exit 2): error: radar2shape fit: conf/missing.yaml: config file not found"]
