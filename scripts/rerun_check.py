@@ -79,8 +79,13 @@ def compare(reference: dict[str, dict[int, float]], rerun_values: dict[str, dict
     return rows
 
 
+def agrees(rows: list[dict], rtol: float) -> bool:
+    """Every compared value has shared steps and no relative difference above ``rtol``."""
+    return all(r["steps"] and r["max_rel"] <= rtol for r in rows)
+
+
 def markdown(run_dir: Path, args: list[str], epochs: int, threads: int, rows: list[dict], rtol: float) -> str:
-    agree = all(r["steps"] and r["max_rel"] <= rtol for r in rows)
+    agree = agrees(rows, rtol)
     lines = [f"# Rerun check: `{run_dir.name}`", "",
              f"The run's recorded fit command, rerun for its first {epochs} epoch(s) with {threads} CPU thread(s) "
              f"(`python scripts/rerun_check.py --run {run_dir} --epochs {epochs} --threads {threads}`), "
@@ -120,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {args.out}")
     else:
         print(text)
-    return 0 if all(r["steps"] and r["max_rel"] <= args.rtol for r in rows) else 1
+    return 0 if agrees(rows, args.rtol) else 1
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ test metrics (``metrics.json``) and, written last and atomically, a ``done`` mar
 grid skips runs with a ``done`` marker, resumes a fit that was interrupted (killed, not failed) from
 its last readable checkpoint when the grid still gives it the same command, and restarts any other
 run from scratch: a killed sweep, or a two-hour run cut by the end of a sitting, loses at most the
-epochs since the last checkpoint.
+epochs since the last checkpoint (one epoch with the shipped callbacks, which save every epoch).
 
 Dependencies are paths: an override value under ``<out_dir>/<other run>/`` (a Stage-1 or PO
 checkpoint) makes the run depend on ``<other run>``, which must come earlier in the file (runs
