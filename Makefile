@@ -14,7 +14,7 @@ DATA_DIR ?= data/parts
 WORKERS ?= 2
 
 .DEFAULT_GOAL := help
-.PHONY: help install test test-full demo data fit test-model sweep report monocone default-model validation bench clean
+.PHONY: help install test test-full demo data data-real fit test-model sweep report results monocone default-model validation bench clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*## "}; {printf "  %-12s %s\n", $$1, $$2}'
@@ -40,6 +40,16 @@ demo: install ## Build a tiny dataset, train and test the default models on CPU,
 data: install ## Build the default dataset (DATA_CONFIG=, DATA_DIR=, WORKERS=)
 	$(VENV)/bin/radar2shape build-data --config $(DATA_CONFIG) --out $(DATA_DIR) --workers $(WORKERS)
 
+REAL_SRC ?= data/real-src
+data-real: install ## Build the real-target dataset (FlightGear + Gazebo, conf/data/real.yaml) into data/real; fetches the FlightGear packages into data/real-src/ once (WORKERS=)
+	@if [ ! -d $(REAL_SRC)/usr/share/games/flightgear/AI ]; then \
+	  set -e; rm -rf $(REAL_SRC).partial; mkdir -p $(REAL_SRC).partial/debs; \
+	  (cd $(REAL_SRC).partial/debs && apt-get download flightgear-data-ai flightgear-data-models); \
+	  for deb in $(REAL_SRC).partial/debs/*.deb; do dpkg-deb -x "$$deb" $(REAL_SRC).partial; done; \
+	  rm -rf $(REAL_SRC).partial/debs $(REAL_SRC); mv $(REAL_SRC).partial $(REAL_SRC); fi
+	@$(PY) -c "import collada" 2>/dev/null || $(PY) -m pip install --quiet pycollada  # COLLADA (Gazebo) reader
+	$(VENV)/bin/radar2shape build-data --config conf/data/real.yaml --out data/real --workers $(WORKERS)
+
 fit: install ## Train: make fit CONFIG="conf/trainer/cpu.yaml conf/callbacks/shape_metrics.yaml conf/experiment/NAME.yaml"
 	$(VENV)/bin/radar2shape fit $(foreach c,$(CONFIG),--config $(c))
 
@@ -61,6 +71,9 @@ default-model: install ## Export Radar2Shape of table1-medium (full, seed 0) as 
 
 validation: install ## PO and PO + edge currents against the Austin RCS suite in ../shared/validation -> reports/radar/validation.md
 	$(PY) -m radar2shape.radar.validation --out reports/radar/validation.md
+
+results: install ## Rewrite docs/results.md, the model card and README's results table from reports/
+	$(PY) -m radar2shape.reporting.results
 
 bench: install ## Run the speed benchmarks under bench/
 	@for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

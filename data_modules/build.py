@@ -6,6 +6,10 @@
 - Resume: a task is done when its record or skip marker exists; both are written atomically.
 - Workers: a spawn process pool, one thread per worker for numpy/BLAS/torch.
 - Manifest: written when no task is missing, by whichever run notices first (or ``--finalize``).
+- One writer per shard: a lock file in the folder (:mod:`radar2shape.locking`) refuses a second
+  build of the same shard; the shards of a job array lock separately and run side by side.
+- SIGTERM: the record being built is dropped (its temporary file removed), finished ones stay, and
+  :class:`radar2shape.preemption.Preempted` says how many are done; pool workers stop too.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from data_modules.config import BuildConfig, config_from_dict
 from data_modules.manifest import missing_tasks, write_manifest
 from data_modules.record_builder import RecordBuilder
 from data_modules.records import record_path, skip_path, write_json, write_record
+from radar2shape import preemption
 from radar2shape.errors import UserInputError
 from radar2shape.geometry.families import ShapeTask
 
@@ -43,6 +48,12 @@ class BuildSummary:
     skipped: int  # skip markers written by this call
     already_done: int  # tasks found finished at the start (resume)
     manifest: dict | None  # the manifest, when this call could write it
+
+
+def lock_name(shard: tuple[int, int]) -> str:
+    """The lock file of a shard's writer (one for an unsharded build)."""
+    index, count = shard
+    return ".build-data.lock" if count == 1 else f".build-data.shard-{index}-of-{count}.lock"
 
 
 def _check_config(root: Path, config: BuildConfig) -> None:
@@ -77,13 +88,16 @@ _WORKER_BUILDER: RecordBuilder | None = None  # one per pool worker, made by the
 
 
 def _init_worker(config_dict: dict) -> None:
-    """Pool initializer: one torch thread (the workers are the parallelism), then the builder."""
+    """Pool initializer: one torch thread (the workers are the parallelism), SIGTERM stops the
+    record being built (its temporary file removed), then the builder."""
     global _WORKER_BUILDER
+    preemption.install()
     torch.set_num_threads(1)
     _WORKER_BUILDER = RecordBuilder(config_from_dict(config_dict))
 
 
 def _worker_task(root: str, task: ShapeTask) -> str:
+    preemption.raise_if_received()  # queued before the signal: not started
     return build_task(_WORKER_BUILDER, root, task)
 
 
@@ -114,9 +128,29 @@ def _statuses(config: BuildConfig, root: Path, todo: list[ShapeTask], workers: i
         builder = RecordBuilder(config)
         yield from (build_task(builder, root, task) for task in todo)
         return
-    with _threads_limited(), ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
-                                                 initializer=_init_worker, initargs=(config.to_dict(),)) as pool:
+    with _threads_limited():
+        pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_init_worker, initargs=(config.to_dict(),))
+    try:
         yield from (future.result() for future in as_completed([pool.submit(_worker_task, str(root), t) for t in todo]))
+    except BaseException:  # SIGTERM (here or in a worker), an error, or the caller stopping early
+        _stop_workers(pool)
+        raise
+    pool.shutdown()
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Cancel the queued tasks and SIGTERM the workers, which drop the record they are building;
+    then wait for them (a bare ``shutdown`` would first build everything queued)."""
+    import signal
+
+    workers = list(multiprocessing.active_children())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in workers:
+        if process.is_alive():
+            os.kill(process.pid, signal.SIGTERM)
+    for process in workers:
+        process.join()
 
 
 def build_dataset(config: BuildConfig, root: str | Path, workers: int = 1, shard: tuple[int, int] = (0, 1),
@@ -128,17 +162,24 @@ def build_dataset(config: BuildConfig, root: str | Path, workers: int = 1, shard
     family = config.make_family()
     tasks = family.plan(config.num, config.splits, config.seed)  # before anything is written
     root = Path(root)
-    root.mkdir(parents=True, exist_ok=True)
-    _check_config(root, config)
-    mine = tasks[index::count]
-    todo = missing_tasks(root, mine)
-    counts = {"built": 0, "skipped": 0}
-    with tqdm(total=len(mine), initial=len(mine) - len(todo), desc=f"build-data {family.name} shard {index}/{count}",
-              unit="shape", disable=not progress, file=sys.stderr) as bar:
-        for status in _statuses(config, root, todo, workers):
-            counts[status] += 1
-            bar.update()
-    manifest = None if missing_tasks(root, tasks) else write_manifest(root, config, family, tasks)
+    from radar2shape.locking import folder_lock
+
+    with folder_lock(root, lock_name(shard), f"another build-data of shard {index}/{count}", "--out"):
+        _check_config(root, config)
+        mine = tasks[index::count]
+        todo = missing_tasks(root, mine)
+        counts = {"built": 0, "skipped": 0}
+        try:
+            with tqdm(total=len(mine), initial=len(mine) - len(todo), unit="shape", disable=not progress,
+                      desc=f"build-data {family.name} shard {index}/{count}", file=sys.stderr) as bar:
+                for status in _statuses(config, root, todo, workers):
+                    counts[status] += 1
+                    bar.update()
+        except preemption.Preempted as stop:
+            done = len(mine) - len(missing_tasks(root, mine))
+            stop.detail = f"{done} of {len(mine)} records of shard {index}/{count} done"
+            raise
+        manifest = None if missing_tasks(root, tasks) else write_manifest(root, config, family, tasks)
     return BuildSummary(len(mine), counts["built"], counts["skipped"], len(mine) - len(todo), manifest)
 
 

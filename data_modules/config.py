@@ -15,6 +15,7 @@ and other working directories work).
 from __future__ import annotations
 
 import inspect
+import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Optional
@@ -32,8 +33,8 @@ class SimulatorOptions:
     """Keys the ``simulator`` section may set (unset ones keep ``simulate``'s defaults)."""
 
     method: Optional[str] = None  # "po" (default), "sbr", "po+ec" or "sbr+ec"
-    max_bounces: Optional[int] = None
-    rays_per_wavelength: Optional[float] = None
+    max_bounces: Optional[int] = None  # sbr: bounces traced, >= 1 (checked whatever the method)
+    rays_per_wavelength: Optional[float] = None  # sbr: ray tubes per wavelength, > 0
     shadowing: Optional[bool] = None
     polarization: Optional[str] = None  # "VV" (default), "HH", "HV" or "VH": records hold one channel
     edge_threshold_deg: Optional[float] = None  # +ec methods: sharp-edge normal turn in degrees
@@ -61,18 +62,20 @@ class BuildConfig:
         from radar2shape.geometry.families import FAMILIES
         from radar2shape.radar import RadarGrid
         from radar2shape.radar.edges import check_krho, check_order, check_threshold
+        from radar2shape.radar.sbr import DEFAULT_BOUNCES, DEFAULT_RAYS_PER_WAVELENGTH, check_options
 
         self.sampling = replace(self.sampling, sdf_near_sigmas=tuple(self.sampling.sdf_near_sigmas))
-        if self.family not in FAMILIES:
-            raise UserInputError(f"family: unknown family {self.family!r}; choose from {sorted(FAMILIES)}")
-        accepted = [name for name in inspect.signature(FAMILIES[self.family]).parameters if name != "self"]
+        families = {**FAMILIES, **_data_families()}
+        if self.family not in families:
+            raise UserInputError(f"family: unknown family {self.family!r}; choose from {sorted(families)}")
+        accepted = [name for name in inspect.signature(families[self.family]).parameters if name != "self"]
         unknown = sorted(set(self.family_options) - set(accepted))
         if unknown:
             raise UserInputError(f"family_options: unknown key(s) {unknown} for family {self.family!r}; "
                                  f"expected some of {accepted}")
         if self.num is not None and self.num < 1:
             raise UserInputError(f"num: expected a positive number of shapes, got {self.num}")
-        if self.num is None and self.family != "folder":
+        if self.num is None and self.family not in ("folder", "real"):
             raise UserInputError(f"'num' must be a positive number of shapes for family {self.family!r}")
         bad_splits = sorted(set(self.splits) - {"train", "val", "test"})
         if bad_splits or any(v < 0 for v in self.splits.values()) or sum(self.splits.values()) <= 0:
@@ -95,7 +98,11 @@ class BuildConfig:
         if options.polarization not in (None, "VV", "HH", "HV", "VH"):
             raise UserInputError(f"simulator.polarization: expected 'VV', 'HH', 'HV' or 'VH' (one channel per "
                                  f"record), got {options.polarization!r}")
-        try:  # the simulator's own checks, named under this section
+        try:  # the simulator's own checks, named under this section, whatever the method uses
+            if options.max_bounces is not None or options.rays_per_wavelength is not None:
+                check_options(DEFAULT_BOUNCES if options.max_bounces is None else options.max_bounces,
+                              DEFAULT_RAYS_PER_WAVELENGTH if options.rays_per_wavelength is None
+                              else options.rays_per_wavelength)
             if options.edge_threshold_deg is not None:
                 check_threshold(options.edge_threshold_deg)
             if options.edge_krho is not None:
@@ -108,17 +115,31 @@ class BuildConfig:
             RadarGrid.from_config(self.radar)
         except UserInputError as err:
             raise UserInputError(f"radar: {err}") from None
+        if not math.isfinite(self.floor_db):
+            raise UserInputError(f"floor_db: expected a finite dB floor, got {self.floor_db}")
         self.make_family()  # option values, folder root
 
     def make_family(self):
         """The shape family this config builds from."""
         from radar2shape.geometry.families import make_family
 
+        if self.family in _data_families():
+            try:
+                return _data_families()[self.family](**self.family_options)
+            except TypeError as err:
+                raise UserInputError(f"family_options for {self.family!r}: {err}") from err
         return make_family(self.family, self.family_options)
 
     def to_dict(self) -> dict:
         """Plain, JSON-ready form (tuples become lists), as stored in the manifest."""
         return _jsonable(asdict(self))
+
+
+def _data_families() -> dict:
+    """Families that live in data_modules (the radar2shape package never imports data_modules)."""
+    from data_modules.real_sources import RealTargetsFamily
+
+    return {"real": RealTargetsFamily}
 
 
 def _jsonable(value):
@@ -173,9 +194,54 @@ def load_build_config(path: str | Path, num: int | None = None) -> BuildConfig:
     options = raw.get("family_options")
     if isinstance(options, dict) and isinstance(options.get("root"), str):
         raw["family_options"] = {**options, "root": str(resolve_path(options["root"], path.parent))}
+    if isinstance(options, dict) and isinstance(options.get("sources"), list):  # family real: one root per source
+        raw["family_options"] = {**raw.get("family_options", options), "sources": [
+            {**source, "root": str(resolve_path(source["root"], path.parent))}
+            if isinstance(source, dict) and isinstance(source.get("root"), str) else source
+            for source in options["sources"]]}
     return structured(BuildConfig, raw, str(path))
 
 
 def config_from_dict(data: dict) -> BuildConfig:
     """Inverse of ``BuildConfig.to_dict`` (used by the build's worker processes)."""
     return structured(BuildConfig, data, "build config")
+
+
+def _largest_input_faces(config: BuildConfig) -> tuple[int, str] | None:
+    """(faces, file) of a folder family's largest input file, from its header; None otherwise."""
+    from radar2shape.preflight import count_faces
+
+    if config.family != "folder":
+        return None
+    tasks = config.make_family().plan(config.num, config.splits, config.seed)
+    root = Path(config.family_options["root"])
+    files = [root / t.source for t in tasks if t.source]
+    files = [f for f in files if f.is_file()]
+    if not files:
+        return None
+    largest = max(files, key=lambda f: f.stat().st_size)
+    faces = count_faces(largest)
+    return None if faces is None else (faces, str(largest))
+
+
+def check_build_memory(config: BuildConfig, workers: int, option_gb: float | None = None) -> None:
+    """Refuse a build whose workers together would need more memory than the limit, before anything
+    is written: per worker, the largest mesh it holds (a folder's largest input, else
+    ``mesh.face_budget``), the radar grid, the point samples and the repair remesh grid."""
+    from radar2shape.preflight import (BYTES_PER_CELL, BYTES_PER_SAMPLE, BYTES_PER_VOXEL, check_memory,
+                                       mesh_bytes)
+    from radar2shape.radar import RadarGrid
+
+    grid = RadarGrid.from_config(config.radar)
+    cells = grid.shape[0] * grid.shape[1] * grid.shape[2]
+    s = config.sampling
+    samples = s.surface + s.eval + s.sdf + s.occ
+    largest = _largest_input_faces(config)
+    faces = max(config.mesh.face_budget, largest[0] if largest else 0)
+    per_worker = (mesh_bytes(faces) + cells * BYTES_PER_CELL + samples * BYTES_PER_SAMPLE
+                  + config.mesh.remesh_resolution ** 3 * BYTES_PER_VOXEL)
+    source = f"the largest input {largest[1]}" if largest and largest[0] >= config.mesh.face_budget else "mesh.face_budget"
+    check_memory(workers * per_worker,
+                 f"build-data with {workers} worker(s) (each: a {faces}-face mesh from {source}, a {grid.shape[0]} x "
+                 f"{grid.shape[1]} x {grid.shape[2]} radar grid, {samples} sample points, a "
+                 f"{config.mesh.remesh_resolution}^3 remesh grid)", option_gb)

@@ -4,12 +4,19 @@ Both read the manifest at construction, so ``class_names``, ``num_classes``, ``r
 ``radar_spec`` (grid + dB normalisation, which the model stores in its checkpoints) are known
 before a model is built (LightningCLI can link them). Options (see docs/data.md):
 observability and noise per split, dB floor, point subset sizes per split.
+
+A damaged record stops a run with one line naming the file and ``radar2shape build-data --verify``;
+with ``skip_bad_records`` it is replaced deterministically and the skips are logged per epoch
+(``<split>/skipped_records``, plus a warning line when any).
 """
 
 from __future__ import annotations
 
+import sys
+from collections import Counter
 from pathlib import Path
 
+from lightning.pytorch.callbacks import Callback
 from torch.utils.data import DataLoader
 
 from data_modules.datasets import EpochSampler, ProfileDataset, RecordDataset, RecordSet
@@ -55,6 +62,9 @@ class ShapeDataModule(ReconstructionDataModule):
         cache_records: keep each record's arrays in memory after the first read (per loader
             process; workers are persistent). For datasets that fit in RAM: a small model's
             epoch is otherwise mostly spent opening ``.npz`` files.
+        skip_bad_records: replace a damaged record (truncated, corrupt, missing) by the next
+            readable one instead of stopping, and log the count per epoch; off by default, so a
+            damaged dataset is noticed (``radar2shape build-data --verify/--repair`` fixes it).
     """
 
     dataset_class = RecordDataset
@@ -65,7 +75,8 @@ class ShapeDataModule(ReconstructionDataModule):
                  train_keep: tuple[float, float] = (0.3, 1.0), test_keep: float = 0.3,
                  train_noise_db: float | tuple[float, float] | None = None, test_noise_db: float | None = None,
                  points: dict[str, dict[str, int]] | None = None, pin_memory: bool = False,
-                 mask_rule: str = "per_axis", noise_reference: str = "absolute", cache_records: bool = False):
+                 mask_rule: str = "per_axis", noise_reference: str = "absolute", cache_records: bool = False,
+                 skip_bad_records: bool = False):
         super().__init__()
         self.save_hyperparameters()
         self.root = Path(root)
@@ -75,6 +86,7 @@ class ShapeDataModule(ReconstructionDataModule):
         self.points = {split: {**DEFAULT_POINTS[split], **((points or {}).get(split) or {})} for split in DEFAULT_POINTS}
         self._spec = dataset_radar_spec(self.root, self.manifest, float(floor_db), self.roll_symmetric)
         self.datasets: dict[str, RecordDataset] = {}
+        self.skipped: Counter = Counter()  # substituted items per split since the last epoch report
         _keep_range("test_keep", test_keep)  # train_keep: checked by transform("train")
         for split in ("train", "test"):
             self.transform(split)  # bad observability, mask or noise options fail here, not mid-epoch
@@ -118,6 +130,7 @@ class ShapeDataModule(ReconstructionDataModule):
             self.datasets[split] = self.dataset_class(
                 records, self.manifest["labels"][split], self.transform(split), self.points[split],
                 train=split == "train", seed=self.hparams.seed, cache=self.hparams.cache_records,
+                skip_bad=self.hparams.skip_bad_records,
             )
         return self.datasets[split]
 
@@ -129,6 +142,21 @@ class ShapeDataModule(ReconstructionDataModule):
             sampler=EpochSampler(len(dataset), shuffle=split == "train", seed=self.hparams.seed),
             persistent_workers=workers > 0, pin_memory=self.hparams.pin_memory,
         )
+
+    def setup(self, stage: str) -> None:
+        """With ``skip_bad_records``, attach the callback that logs the skips at each epoch end."""
+        trainer = getattr(self, "trainer", None)
+        if self.hparams.skip_bad_records and trainer is not None and \
+                not any(isinstance(c, SkippedRecordsLogger) for c in trainer.callbacks):
+            trainer.callbacks.append(SkippedRecordsLogger(self))
+
+    def on_before_batch_transfer(self, batch, dataloader_idx: int):
+        """Count (and drop) the ``record_skipped`` flags of a batch: models never see the key."""
+        flags = batch.pop("record_skipped", None) if isinstance(batch, dict) else None
+        trainer = getattr(self, "trainer", None)
+        if flags is not None and trainer is not None and not trainer.sanity_checking:
+            self.skipped[_split_of(trainer)] += int(flags.sum())
+        return batch
 
     def train_dataloader(self) -> DataLoader:
         return self._loader("train")
@@ -155,3 +183,35 @@ class ProfileDataModule(ShapeDataModule):
             raise UserInputError(f"{self.root}: records have no profiles (family {self.manifest['family']!r}); "
                                  "ProfileDataModule needs a roll-symmetric family such as frusta")
         self.profile_points: int = self.manifest["profile_points"]
+
+
+def _split_of(trainer) -> str:
+    if trainer.training:
+        return "train"
+    return "val" if trainer.validating else "test"
+
+
+class SkippedRecordsLogger(Callback):
+    """Logs ``<split>/skipped_records`` at each epoch end (summed over processes) and prints one
+    warning line when records were substituted; added by the DataModule with ``skip_bad_records``."""
+
+    def __init__(self, datamodule: ShapeDataModule):
+        self.datamodule = datamodule
+
+    def _report(self, trainer, pl_module, split: str) -> None:
+        count = self.datamodule.skipped.pop(split, 0)
+        pl_module.log(f"{split}/skipped_records", float(count), reduce_fx="sum", sync_dist=True)
+        if count and trainer.is_global_zero:
+            print(f"warning: epoch {trainer.current_epoch}: {count} {split} item(s) came from a substitute for a "
+                  f"damaged record (data.skip_bad_records); check with 'radar2shape build-data --verify "
+                  f"{self.datamodule.root}'", file=sys.stderr)
+
+    def on_train_epoch_end(self, trainer, pl_module) -> None:
+        self._report(trainer, pl_module, "train")
+
+    def on_validation_epoch_end(self, trainer, pl_module) -> None:
+        if not trainer.sanity_checking:
+            self._report(trainer, pl_module, "val")
+
+    def on_test_epoch_end(self, trainer, pl_module) -> None:
+        self._report(trainer, pl_module, "test")

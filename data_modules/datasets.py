@@ -4,10 +4,15 @@ Randomness is a pure function of ``(seed, split, epoch, index)``, so an item is 
 DataLoader worker, with any number of workers, and on every DDP rank; the epoch reaches the
 dataset through the index itself (``EpochSampler`` yields ``(epoch, index)`` pairs) because
 worker processes never see attributes set on the main-process dataset.
+
+A damaged record (truncated, corrupt, missing) raises ``BadRecordError`` naming the file, or, with
+``skip_bad=True``, is replaced by the next readable record in index order (the same substitute in
+every worker and epoch), with ``record_skipped`` set in the item so the DataModule can count it.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -16,7 +21,8 @@ import torch
 from torch.utils.data import Dataset, Sampler
 
 from data_modules.radar_transform import RadarTransform
-from data_modules.records import read_record, record_path
+from data_modules.records import read_record, record_path, verify_command
+from radar2shape.errors import BadRecordError
 
 POINT_KEYS = {  # subset name -> record keys sharing one index set
     "surface": ("surface_points", "surface_normals"),
@@ -79,7 +85,7 @@ class RecordDataset(Dataset):
     """
 
     def __init__(self, records: RecordSet, labels: list[int], transform: RadarTransform, points: dict[str, int],
-                 train: bool, seed: int = 0, cache: bool = False):
+                 train: bool, seed: int = 0, cache: bool = False, skip_bad: bool = False):
         unknown = sorted(set(points) - set(POINT_KEYS))
         if unknown:
             raise ValueError(f"points: unknown subset(s) {unknown}; expected some of {sorted(POINT_KEYS)}")
@@ -88,6 +94,8 @@ class RecordDataset(Dataset):
         self.train, self.seed = train, seed
         self.keys = ["radar"] + [key for name in self.points for key in POINT_KEYS[name]] + self.extra_keys()
         self.cache: dict[int, dict] | None = {} if cache else None
+        self.skip_bad = skip_bad
+        self._reported: set[int] = set()  # bad records already warned about in this process
 
     def read(self, index: int) -> dict:
         """The record's arrays for :attr:`keys`; kept in memory after the first read when caching
@@ -120,6 +128,24 @@ class RecordDataset(Dataset):
 
     def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
         epoch, index = key if isinstance(key, tuple) else (0, key)
+        if not self.skip_bad:
+            return self.item(epoch, index)
+        for step in range(len(self)):
+            candidate = (index + step) % len(self)
+            try:
+                item = self.item(epoch, candidate)
+            except BadRecordError as err:
+                if candidate not in self._reported:
+                    self._reported.add(candidate)
+                    print(f"warning: skipping a damaged record (data.skip_bad_records): {err}", file=sys.stderr)
+                continue
+            item["record_skipped"] = torch.tensor(step > 0)
+            return item
+        raise BadRecordError(f"{self.records.root}: every record of split {self.records.split!r} is damaged; "
+                             f"check with '{verify_command(self.records.path(0))}'")
+
+    def item(self, epoch: int, index: int) -> dict[str, torch.Tensor]:
+        """The item of record ``index`` in ``epoch`` (no substitution)."""
         rng = self.rng(epoch, index)
         record = self.read(index)
         radar, mask = self.radar(record["radar"], rng, index)

@@ -95,9 +95,14 @@ def read_manifest(root: str | Path) -> dict:
         if Path(root).is_dir():
             raise UserInputError(f"{path} not found: the dataset build has not finished ({hint}; it resumes)")
         raise UserInputError(f"dataset folder {Path(root)} not found: {hint}")
-    manifest = json.loads(path.read_text())
-    if manifest.get("format") != FORMAT:
-        raise UserInputError(f"{path}: unknown dataset format {manifest.get('format')!r} (expected {FORMAT})")
+    try:
+        manifest = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as err:  # truncated or overwritten: rewritten by a resumed build
+        raise UserInputError(f"{path}: not a readable manifest ({type(err).__name__}: {err}); run the same "
+                             "build-data command again to rewrite it (it resumes), or --finalize") from None
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
+        found = manifest.get("format") if isinstance(manifest, dict) else type(manifest).__name__
+        raise UserInputError(f"{path}: unknown dataset format {found!r} (expected {FORMAT})")
     return manifest
 
 

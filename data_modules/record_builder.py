@@ -11,7 +11,7 @@ import json
 import numpy as np
 
 from data_modules.config import BuildConfig
-from radar2shape.geometry.families import Family, ShapeTask, make_family
+from radar2shape.geometry.families import Family, ShapeTask
 from radar2shape.geometry.normalise import scaled
 from radar2shape.geometry.prepare import prepare_mesh
 from radar2shape.geometry.sampling import sample_shape
@@ -23,7 +23,7 @@ class RecordBuilder:
 
     def __init__(self, config: BuildConfig):
         self.config = config
-        self.family: Family = make_family(config.family, config.family_options)
+        self.family: Family = config.make_family()  # data_modules families too
         self.grid = RadarGrid.from_config(config.radar)
 
     def radar(self, mesh) -> np.ndarray:

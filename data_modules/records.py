@@ -7,16 +7,21 @@ Layout of a built dataset (see docs/data.md):
     <root>/records/<split>/<id>.skip.json   an input that was skipped, with the reason
 A record exists under its final name only once it is complete (temp file + ``os.replace``), so
 a killed build never leaves a half-written record, and resuming means "skip what exists".
+Record files are byte-deterministic (fixed zip member times), so a rebuilt or repaired record
+equals the original byte for byte. A record that cannot be read raises ``BadRecordError`` naming
+the file and ``radar2shape build-data --verify``.
 """
 
 from __future__ import annotations
 
 import json
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from radar2shape.atomic import atomic_open
+from radar2shape.errors import BadRecordError
 
 RECORD_KEYS = (
     "vertices", "faces",                      # normalised watertight mesh (float32, int32)
@@ -45,9 +50,22 @@ def _atomic_write(path: Path, write) -> None:
         write(stream)
 
 
+_ZIP_TIME = (1980, 1, 1, 0, 0, 0)  # fixed member time: equal arrays give equal files
+
+
+def _write_npz(stream, arrays: dict[str, np.ndarray]) -> None:
+    """``np.savez`` layout (stored ``<key>.npy`` members, zip64) without the wall-clock member times."""
+    with zipfile.ZipFile(stream, "w", zipfile.ZIP_STORED, allowZip64=True) as archive:
+        for key, value in arrays.items():
+            info = zipfile.ZipInfo(f"{key}.npy", date_time=_ZIP_TIME)
+            info.external_attr = 0o600 << 16
+            with archive.open(info, "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
+
+
 def write_record(path: Path, arrays: dict[str, np.ndarray]) -> None:
     """Atomically write a record (uncompressed: the arrays are random floats, and loads stay lazy)."""
-    _atomic_write(path, lambda stream: np.savez(stream, **arrays))
+    _atomic_write(path, lambda stream: _write_npz(stream, arrays))
 
 
 def write_json(path: Path, data: dict) -> None:
@@ -56,11 +74,30 @@ def write_json(path: Path, data: dict) -> None:
     _atomic_write(path, lambda stream: stream.write(text.encode()))
 
 
+def verify_command(path: str | Path) -> str:
+    """The command that checks the dataset holding the record ``path`` (``<root>/records/<split>/<id>.npz``)."""
+    path = Path(path)
+    root = path.parents[2] if len(path.parents) > 2 and path.parent.parent.name == "records" else path.parent
+    return f"radar2shape build-data --verify {root}"
+
+
 def read_record(path: str | Path, keys: tuple[str, ...] | list[str] | None = None) -> dict:
-    """The arrays of one record (all, or only ``keys``); string scalars come back as ``str``."""
-    with np.load(path, allow_pickle=False) as data:
-        names = data.files if keys is None else [k for k in keys if k in data.files]
-        out = {name: data[name] for name in names}
+    """The arrays of one record (all, or only ``keys``); string scalars come back as ``str``.
+
+    A truncated or corrupt file (an interrupted copy) is one ``BadRecordError`` line naming the
+    file and the verify command, as is a missing one.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            names = data.files if keys is None else [k for k in keys if k in data.files]
+            out = {name: data[name] for name in names}
+    except FileNotFoundError:
+        raise BadRecordError(f"{path}: dataset record missing; list every bad record with "
+                             f"'{verify_command(path)}'") from None
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, EOFError, OSError, KeyError) as err:
+        reason = " ".join(f"{type(err).__name__}: {err}".split())
+        raise BadRecordError(f"{path}: damaged dataset record ({reason}); list every bad record with "
+                             f"'{verify_command(path)}'") from err
     for name, value in out.items():
         if value.dtype.kind == "U":
             out[name] = str(value)

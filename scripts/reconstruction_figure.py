@@ -7,7 +7,7 @@
 The report draws one figure per column group from every finished run of the group, and keeps its
 last drawing while any run of the group is archived (its folder on another machine: its meshes
 cannot be redrawn). This draws a figure from the runs on this machine that the caller names, in
-the caller's order, with the report's drawing (``report_layouts.model_rows_figure``) and row titles.
+the caller's order, with the report's drawing (``reporting.figures.model_rows_figure``) and row titles.
 """
 
 from __future__ import annotations
@@ -24,8 +24,7 @@ from radar2shape.errors import UserInputError  # noqa: E402
 
 def draw(grid_name: str, runs: list[str], out: Path, shapes: int) -> list[str]:
     """Draw the figure; returns its row titles (ground truth first)."""
-    from radar2shape.report_layouts import model_rows_figure, saved_reconstructions
-    from radar2shape.reporting import collect_cells, get_layout
+    from radar2shape.reporting import collect_cells, get_layout, model_rows_figure, saved_reconstructions
     from radar2shape.sweep import load_grid
 
     grid = load_grid(grid_name)

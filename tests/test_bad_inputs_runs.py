@@ -225,7 +225,7 @@ def test_report_is_all_or_nothing(tmp_path, monkeypatch):
         raise OSError(28, "No space left on device", str(out / "table.md"))
 
     layout = reporting.Layout("half", (), half_way)
-    monkeypatch.setattr(reporting, "get_layout", lambda name: layout)
+    monkeypatch.setattr(reporting.registry, "get_layout", lambda name: layout)
     out = tmp_path / "reports" / "g"
     with pytest.raises(OSError, match="No space left"):
         reporting.write_report(grid, out)

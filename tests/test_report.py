@@ -9,9 +9,8 @@ import pytest
 import trimesh
 import yaml
 
-from radar2shape import cli, report_layouts, sweep
-from radar2shape.report_layouts import LAYOUTS
-from radar2shape.reporting import write_report
+from radar2shape import cli, reporting, sweep
+from radar2shape.reporting import LAYOUTS, write_report
 
 METRICS = {  # model -> (chamfer, iou, fscore) means
     "radar2shape": (1.0, 0.8, 0.9),
@@ -84,7 +83,7 @@ def test_figures_show_each_row_once_from_the_replicate_that_saved_most():
     names = ["radar2shape-full-seed0", "radar2shape-full-seed1", "radar2shape-full-seed2", "nearest-full"]
     cells = [Cell(n, Path(n), "done") for n in names]
     saved = {"radar2shape-full-seed0": 4, "radar2shape-full-seed1": 6, "radar2shape-full-seed2": 6, "nearest-full": 4}
-    chosen = report_layouts.one_replicate_per_row(cells, LAYOUTS["table1"], saved)
+    chosen = reporting.one_replicate_per_row(cells, LAYOUTS["table1"], saved)
     assert [c.name for c in chosen] == ["radar2shape-full-seed1", "nearest-full"]
 
 
@@ -213,8 +212,8 @@ def test_table1_grids_name_cells_and_train_stage1_first(name):
     order = [run.name for run in grid.runs]
     for i, run in enumerate(grid.runs):
         model, group = _cell(layout, run.name)
-        assert model in report_layouts.MODEL_TITLES or run.name.endswith("_stage1"), run.name
-        assert group is None or group in report_layouts.GROUP_TITLES, run.name
+        assert model in reporting.MODEL_TITLES or run.name.endswith("_stage1"), run.name
+        assert group is None or group in reporting.GROUP_TITLES, run.name
         for path in run.configs + [v for v in run.overrides.values() if str(v).endswith(".yaml")]:
             assert (repo / path).is_file(), path
         checkpoint = run.overrides.get("model.init_args.stage1_ckpt")
@@ -264,7 +263,7 @@ def scored_run(run_dir, iou_of_index, n=25, config=None, dependence=0.25):
 
 
 def test_table1_subset_diagnostics_masks_and_counts(tmp_path):
-    from radar2shape.report_layouts import paper_subset
+    from radar2shape.reporting import paper_subset
 
     runs = tmp_path / "runs"
     names = ["radar2shape-full", "radar2shape-partial", "tmnet-partial"]
@@ -315,7 +314,7 @@ def test_table1_subset_diagnostics_masks_and_counts(tmp_path):
 
 
 def test_masking_from_run_names_without_config():
-    from radar2shape.report_layouts import masking
+    from radar2shape.reporting import masking
     from radar2shape.reporting import Cell
 
     def cell(name):

@@ -7,6 +7,11 @@ failure the temporary file and any parent folders created for it are removed.
 ``atomic_paths`` does the same for several outputs of one command: nothing is renamed until
 every file is written, so a command that fails half-way leaves no new file.
 
+A write that runs out of space (ENOSPC, or EDQUOT for a quota) is turned into one
+:class:`~radar2shape.errors.DiskFullError` line naming the target and the space left on its file
+system, after the temporary file is removed: a full disk leaves no partial file, and the same
+command completes once space is freed.
+
 ``check_output_path`` validates an output before any work is done (one clear line naming the
 option and the path), so commands can check all outputs first, then write all.
 """
@@ -14,15 +19,71 @@ option and the path), so commands can check all outputs first, then write all.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import shutil
 import uuid
 from pathlib import Path
 from typing import IO, Iterator
 
-from radar2shape.errors import UserInputError
+from radar2shape.errors import DiskFullError, UserInputError
 
 __all__ = ["atomic_path", "atomic_paths", "atomic_open", "write_text_atomic", "write_bytes_atomic",
-           "check_output_path", "check_output_dir"]
+           "check_output_path", "check_output_dir", "disk_full", "is_disk_full", "format_bytes"]
+
+_NO_SPACE = (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
+
+
+def format_bytes(nbytes: float) -> str:
+    """``nbytes`` for people: B, kB, MB, GB (powers of 1000, as ``df -H``)."""
+    for unit, size in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if abs(nbytes) >= size:
+            return f"{nbytes / size:.1f} {unit}"
+    return f"{int(nbytes)} B"
+
+
+def is_disk_full(err: BaseException) -> bool:
+    """True when ``err`` or an error it was raised from or while handling is ENOSPC / EDQUOT.
+
+    Writers wrap the OS error (torch's zip writer raises a RuntimeError whose message carries it),
+    so the chain is searched and, for a wrapped one, the message.
+    """
+    seen: set[int] = set()
+    while err is not None and id(err) not in seen:
+        seen.add(id(err))
+        if isinstance(err, DiskFullError):
+            return True
+        if isinstance(err, OSError) and err.errno in _NO_SPACE:
+            return True
+        if "No space left on device" in str(err) or "Disk quota exceeded" in str(err):
+            return True
+        err = err.__cause__ or err.__context__
+    return False
+
+
+def disk_full(target: str | Path, needed: int | None = None, quota: bool = False) -> DiskFullError:
+    """The one-line error for a write of ``target`` that found no space: the free space of its
+    file system (``shutil.disk_usage``) and, when known, the bytes the write needed."""
+    target = Path(target)
+    try:
+        free = format_bytes(shutil.disk_usage(_existing_ancestor(target.parent)).free) + " free"
+    except OSError:
+        free = "free space unknown"
+    need = f"needs {format_bytes(needed)}, " if needed else ""
+    what = "disk quota exceeded" if quota else "no space left on device"
+    return DiskFullError(f"{target}: {what} ({need}{free} on its file system); nothing was written: "
+                         "free some space and run the same command again")
+
+
+def _quota(err: BaseException) -> bool:
+    """True when the chain's no-space error is a quota (EDQUOT) rather than a full file system."""
+    seen: set[int] = set()
+    while err is not None and id(err) not in seen:
+        seen.add(id(err))
+        if isinstance(err, OSError) and err.errno is not None and err.errno == getattr(errno, "EDQUOT", None):
+            return True
+        err = err.__cause__ or err.__context__
+    return False
 
 
 def _temp_for(path: Path) -> Path:
@@ -76,10 +137,17 @@ def atomic_paths(*paths: str | Path, mkdir: bool = True) -> Iterator[list[Path]]
             _fsync(temp)
         for temp, target in zip(temps, targets):
             os.replace(temp, target)
-    except BaseException:
+    except BaseException as err:
         for temp in temps:
             temp.unlink(missing_ok=True)
         _remove_folders(created)
+        if isinstance(err, DiskFullError):  # a nested atomic writer named our temp file: name the target
+            for temp, target in zip(temps, targets):
+                if str(temp) in str(err):
+                    raise DiskFullError(str(err).replace(str(temp), str(target))) from err.__cause__
+        elif is_disk_full(err):
+            target = next((t for t, tmp in zip(targets, temps) if tmp.name in str(err)), targets[0])
+            raise disk_full(target, quota=_quota(err)) from err
         raise
 
 
@@ -99,8 +167,11 @@ def atomic_open(path: str | Path, mode: str = "wb", mkdir: bool = True, **kwargs
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically; returns the path."""
-    with atomic_open(path, "wb") as handle:
-        handle.write(data)
+    try:
+        with atomic_open(path, "wb") as handle:
+            handle.write(data)
+    except DiskFullError as err:  # the size is known here: say it
+        raise disk_full(path, needed=len(data), quota="quota" in str(err)) from err.__cause__
     return Path(path)
 
 

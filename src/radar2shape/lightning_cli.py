@@ -9,17 +9,29 @@ A run that cannot start leaves nothing behind: ``--ckpt_path`` is loaded through
 :func:`radar2shape.checkpoints.load_checkpoint` right after parsing, and the model and DataModule
 (which checks its data folder) are built before the Trainer, all before the run folder and its
 ``config.yaml`` (written atomically) exist.
+
+A fit cut by SIGTERM (a scheduler's preemption) saves ``last.ckpt`` in the run's checkpoint folder
+at the batch where Lightning's signal handler stopped it (:class:`PreemptionCheckpoint`), prints one
+line with the command that resumes it, and exits with :data:`radar2shape.preemption.EXIT_CODE`.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import random
+import shlex
 import sys
 
 import lightning as L
+import numpy as np
+import torch
+from lightning.pytorch.callbacks import Callback, ModelCheckpoint
 from lightning.pytorch.cli import LightningCLI, SaveConfigCallback
 from lightning.pytorch.loggers import CSVLogger, WandbLogger
+from lightning.pytorch.utilities.exceptions import SIGTERMException
+
+from radar2shape import preemption
 
 DEFAULT_ROOT_DIR = "runs/default"
 
@@ -54,6 +66,57 @@ class AtomicSaveConfigCallback(SaveConfigCallback):
                 super().setup(trainer, pl_module, stage)
             finally:
                 self.config_filename = final
+
+
+def signal_checkpoint_path(trainer: L.Trainer) -> str:
+    """``last.ckpt`` in the folder the run's ModelCheckpoint writes to (else ``<log dir>/checkpoints``)."""
+    callback = trainer.checkpoint_callback
+    if isinstance(callback, ModelCheckpoint) and callback.dirpath:
+        return os.path.join(callback.dirpath, callback.CHECKPOINT_NAME_LAST + callback.FILE_EXTENSION)
+    return os.path.join(trainer.log_dir or trainer.default_root_dir, "checkpoints", "last.ckpt")
+
+
+class PreemptionCheckpoint(Callback):
+    """Saves ``last.ckpt`` when SIGTERM stops a fit, and puts the random states in every checkpoint.
+
+    Lightning's SignalConnector turns SIGTERM into ``trainer.received_sigterm``; its loops then raise
+    ``SIGTERMException`` after the running batch, which reaches :meth:`on_exception` here. The random
+    states (torch, numpy, Python) make a fit resumed at an epoch boundary draw the same shuffles as
+    the uninterrupted one (Lightning restores the weights, optimizer and loops, not the generators).
+    """
+
+    saved: str | None = None  # the checkpoint the last SIGTERM saved, for the resume line
+
+    def state_dict(self) -> dict:
+        kind, keys, position, has_gauss, cached = np.random.get_state()
+        state = {"torch": torch.get_rng_state(), "numpy": [kind, torch.from_numpy(keys.astype(np.int64)), position,
+                                                          has_gauss, cached],
+                 "python": list(random.getstate())}
+        if torch.cuda.is_available() and torch.cuda.is_initialized():
+            state["cuda"] = torch.cuda.get_rng_state_all()
+        return state
+
+    def load_state_dict(self, state: dict) -> None:
+        torch.set_rng_state(state["torch"])
+        kind, keys, position, has_gauss, cached = state["numpy"]
+        np.random.set_state((kind, keys.numpy().astype(np.uint32), position, has_gauss, cached))
+        version, internal, gauss = state["python"]
+        random.setstate((version, tuple(internal), gauss))
+        if "cuda" in state and torch.cuda.is_available():
+            torch.cuda.set_rng_state_all(state["cuda"])
+
+    def on_exception(self, trainer: L.Trainer, pl_module: L.LightningModule, exception: BaseException) -> None:
+        if not isinstance(exception, SIGTERMException) or trainer.state.fn != "fit":
+            return
+        path = signal_checkpoint_path(trainer)
+        if trainer.is_global_zero:
+            from radar2shape.atomic import atomic_path
+
+            with atomic_path(path) as temp:
+                trainer.save_checkpoint(temp)
+        else:
+            trainer.save_checkpoint(path)  # rank zero writes; the other ranks join its barrier
+        PreemptionCheckpoint.saved = path
 
 
 class Radar2ShapeCLI(LightningCLI):
@@ -110,11 +173,40 @@ class Radar2ShapeCLI(LightningCLI):
             config["default_root_dir"] = DEFAULT_ROOT_DIR
         if config.get("logger") in (None, True):
             config["logger"] = default_loggers(config["default_root_dir"])
-        return super()._instantiate_trainer(config, callbacks)
+        return super()._instantiate_trainer(config, [*callbacks, PreemptionCheckpoint()])
 
 
 def _one_line(message: str) -> str:
     return " ".join(str(message).split())
+
+
+def _without_ckpt_path(argv: list[str]) -> list[str]:
+    """``argv`` less any ``--ckpt_path`` (the resume line gives the new one)."""
+    out, skip = [], False
+    for arg in argv:
+        if skip:
+            skip = False
+        elif arg == "--ckpt_path":
+            skip = True
+        elif not arg.startswith("--ckpt_path="):
+            out.append(arg)
+    return out
+
+
+def _report_sigterm(command: str, argv: list[str], checkpoint: str | None) -> None:
+    """The one line of a command stopped by SIGTERM (rank zero only; a sweep prints its own)."""
+    from lightning.pytorch.utilities.rank_zero import rank_zero_only
+
+    if preemption.caller_will_report() or getattr(rank_zero_only, "rank", 0) != 0:
+        return
+    if checkpoint:
+        again = shlex.join(["radar2shape", command, *_without_ckpt_path(argv), f"--ckpt_path={checkpoint}"])
+        print(f"error: radar2shape {command}: stopped by SIGTERM; saved {checkpoint}; resume with: {again}",
+              file=sys.stderr, flush=True)
+    else:
+        again = shlex.join(["radar2shape", command, *argv])
+        print(f"error: radar2shape {command}: stopped by SIGTERM; rerun: {again}",
+              file=sys.stderr, flush=True)
 
 
 def check_config_files(argv: list[str]) -> None:
@@ -141,20 +233,29 @@ def run_lightning(command: str, argv: list[str]) -> int:
     from radar2shape.models.base import ReconstructionModel
 
     check_config_files(argv)
+    # Lightning logs "Received SIGTERM" on stderr; the one line about it is ours.
+    logging.getLogger("lightning.pytorch.trainer.connectors.signal_connector").setLevel(logging.WARNING)
+    PreemptionCheckpoint.saved = None
     # Lightning relaunches DDP ranks 1.. from sys.argv, so it must hold this very command however we
     # were started (console script or python -m); the CLI parses it from there.
     saved_argv, sys.argv = sys.argv, [*(sys.argv[:1] or ["radar2shape"]), command, *argv]
     try:
-        Radar2ShapeCLI(
-            model_class=ReconstructionModel,
-            datamodule_class=ReconstructionDataModule,
-            subclass_mode_model=True,
-            subclass_mode_data=True,
-            seed_everything_default=0,
-            save_config_callback=AtomicSaveConfigCallback,
-            save_config_kwargs={"overwrite": True},
-            parser_kwargs={"exit_on_error": False},
-        )
+        with preemption.sigterm_stops():
+            try:
+                Radar2ShapeCLI(
+                    model_class=ReconstructionModel,
+                    datamodule_class=ReconstructionDataModule,
+                    subclass_mode_model=True,
+                    subclass_mode_data=True,
+                    seed_everything_default=0,
+                    save_config_callback=AtomicSaveConfigCallback,
+                    save_config_kwargs={"overwrite": True},
+                    parser_kwargs={"exit_on_error": False},
+                )
+            except (SIGTERMException, preemption.Preempted):
+                checkpoint = PreemptionCheckpoint.saved
+                _report_sigterm(command, argv, checkpoint)
+                raise preemption.Preempted(checkpoint) from None
     except ArgumentError as err:  # jsonargparse's message spans lines; radar2shape.cli prints one
         from radar2shape.errors import UserInputError
 

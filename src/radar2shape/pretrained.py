@@ -5,7 +5,7 @@
 (conf/radar/default.yaml). A training checkpoint also carries optimizer moments, loop and callback
 states and the DataModule's settings, which inference never reads and which roughly triple its
 size; :func:`export_checkpoint` keeps only what ``LightningModule.load_from_checkpoint`` and
-``commands.reconstruct.load_model`` read, so the shipped file stays small and loads exactly like
+:func:`load_model` reads, so the shipped file stays small and loads exactly like
 the original. torch is imported only inside the functions: the reconstruct parser names
 :data:`DEFAULT_MODEL` in its help before any heavy import.
 """
@@ -18,11 +18,12 @@ from pathlib import Path
 from radar2shape.atomic import check_output_path, write_bytes_atomic
 from radar2shape.errors import UserInputError
 
-__all__ = ["DEFAULT_MODEL", "EXPORT_KEYS", "DTYPES", "export_checkpoint", "default_checkpoint", "size_mb"]
+__all__ = ["DEFAULT_MODEL", "EXPORT_KEYS", "DTYPES", "export_checkpoint", "default_checkpoint", "load_model", "model_card", "size_mb"]
 
 # A plain file next to this module (not importlib.resources): torch.load needs a real path, and
 # setuptools installs packages unzipped, so the path is a file for editable and regular installs.
 DEFAULT_MODEL = Path(__file__).resolve().parent / "weights" / "radar2shape_parts_medium.ckpt"
+MODEL_CARD = DEFAULT_MODEL.with_name("MODEL_CARD.md")  # written by `make results` (radar2shape.reporting.results)
 
 RADAR_DIFFUSION = "radar2shape.models.radar_diffusion.RadarDiffusion"
 RADAR_SPEC_KEY = "radar_spec"  # = models.base.RADAR_SPEC_KEY (not imported: it needs Lightning)
@@ -151,6 +152,13 @@ def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None
     return size_mb(len(data))
 
 
+def model_card() -> str:
+    """The shipped model's card: what it was trained on, its measured scores, what it does not know."""
+    if not MODEL_CARD.is_file():
+        raise UserInputError(f"--about: no model card is installed (expected {MODEL_CARD})")
+    return MODEL_CARD.read_text(encoding="utf-8")
+
+
 def default_checkpoint() -> Path:
     """:data:`DEFAULT_MODEL` when it is installed; otherwise one line telling the user to pass ``--ckpt``."""
     path = Path(DEFAULT_MODEL)
@@ -158,3 +166,49 @@ def default_checkpoint() -> Path:
         raise UserInputError(f"--ckpt: no default model is installed (expected {path}); "
                              "pass --ckpt CKPT (a RadarDiffusion or profile model checkpoint)")
     return path
+
+
+def _model_class(path: Path, hparams: dict, label: str):
+    """The checkpoint's LightningModule class: its ``_class_path`` (LightningCLI), else RadarDiffusion."""
+    import importlib
+
+    from radar2shape.models.profile_diffusion import ProfileModel
+    from radar2shape.models.radar_diffusion import RadarDiffusion
+
+    class_path = hparams.get("_class_path", RADAR_DIFFUSION)
+    module, _, name = class_path.rpartition(".")
+    try:
+        cls = getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError) as err:
+        raise UserInputError(f"{label}: {path} names model class {class_path!r}, which cannot be imported ({err})") from err
+    if not (isinstance(cls, type) and issubclass(cls, (RadarDiffusion, ProfileModel))):
+        raise UserInputError(f"{label}: {path} holds a {class_path}; expected a RadarDiffusion or a profile model")
+    return cls
+
+
+def load_model(path: str | Path, label: str = "--ckpt"):
+    """The checkpoint's model on the CPU in eval mode, its ``radar_spec`` read from the checkpoint.
+
+    A checkpoint without a radar spec (saved before checkpoints stored one) is refused: its
+    normalisation cannot be recovered without the training data, so the model must be retrained.
+    """
+    from radar2shape.checkpoints import load_checkpoint
+    from radar2shape.radar.spec import RadarSpec
+
+    path = Path(path)
+    checkpoint = load_checkpoint(path, "a reconstruction model checkpoint", label=label)
+    hparams = checkpoint.get("hyper_parameters")
+    if not isinstance(hparams, dict):
+        raise UserInputError(f"{label}: {path}: 'hyper_parameters' is a {type(hparams).__name__}, expected a dict "
+                             "(not a reconstruction model checkpoint)")
+    cls = _model_class(path, dict(hparams), label)
+    if checkpoint.get(RADAR_SPEC_KEY) is None:
+        raise UserInputError(f"{label}: {path} stores no radar spec (it was saved before checkpoints stored one, "
+                             "or not fitted on a radar DataModule); retrain the model")
+    spec = RadarSpec.from_dict(checkpoint[RADAR_SPEC_KEY], f"{label}: {path}: {RADAR_SPEC_KEY}")
+    try:
+        model = cls.load_from_checkpoint(path, map_location="cpu", weights_only=True)
+    except (KeyError, TypeError, ValueError, RuntimeError, AttributeError, EOFError) as err:
+        raise UserInputError(f"{label}: {path} is not a reconstruction model checkpoint ({type(err).__name__}: {err})") from err
+    model.set_radar_spec(spec)  # checked against the network: a spec that does not fit is refused
+    return model.eval()

@@ -10,6 +10,9 @@ grid skips runs with a ``done`` marker, resumes a fit that was interrupted (kill
 its last readable checkpoint when the grid still gives it the same command, and restarts any other
 run from scratch: a killed sweep, or a two-hour run cut by the end of a sitting, loses at most the
 epochs since the last checkpoint (one epoch with the shipped callbacks, which save every epoch).
+A fit stopped by SIGTERM (see :mod:`radar2shape.preemption`) saves ``last.ckpt`` at the batch it
+stopped, records no failure, and is resumed from there; the sweep itself then exits with
+:data:`radar2shape.preemption.EXIT_CODE`. A parallel sweep passes the signal on to its runs.
 
 Dependencies are paths: an override value under ``<out_dir>/<other run>/`` (a Stage-1 or PO
 checkpoint) makes the run depend on ``<other run>``, which must come earlier in the file (runs
@@ -27,7 +30,7 @@ Grid file (YAML, schema :class:`GridSpec`)::
     jobs: 2                            # optional: runs at once, each in its own process (default 1)
     prepare:                           # optional: radar2shape commands run first, every time
       - [build-data, --config, conf/data/x.yaml, --out, data/x]   #   (so they must resume cheaply)
-    report: table1                     # optional: report layout (radar2shape.report_layouts) written
+    report: table1                     # optional: report layout (radar2shape.reporting.layouts) written
                                        #   after the runs; `radar2shape report` defaults to table1
     matrix:                            # optional: cartesian product; names joined with "-"
       model:                           #   axis -> value name -> {configs, overrides}
@@ -45,6 +48,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import os
 import re
 import shutil
 import sys
@@ -57,10 +61,12 @@ from typing import Any, Optional
 
 import yaml
 
+from radar2shape import preemption
 from radar2shape.errors import UserInputError
 from radar2shape.structured_config import read_yaml, structured
 
 DONE = "done"
+LOCK = ".sweep.lock"  # in out_dir: one sweep writes a grid's folders at a time (radar2shape.locking)
 GRID_DIR = Path("conf/grid")
 COMMANDS = ("fit", "test")
 _NAME = re.compile(r"^[A-Za-z0-9_.=+-]+$")
@@ -216,7 +222,7 @@ def load_grid(grid: str | Path) -> Grid:
     if spec.jobs < 1:
         raise UserInputError(f"{path}: key 'jobs': expected a positive integer, got {spec.jobs}")
     if spec.report is not None:
-        from radar2shape.report_layouts import LAYOUTS
+        from radar2shape.reporting import LAYOUTS
 
         if spec.report not in LAYOUTS:
             raise UserInputError(f"{path}: key 'report': unknown report layout {spec.report!r} (expected one of {sorted(LAYOUTS)})")
@@ -269,9 +275,17 @@ def check_out_dir(grid: Grid) -> None:
     check_output_dir(grid.out_dir, f"{grid.path}: key 'out_dir'")
 
 
+def _version(path: Path) -> int:
+    """The Lightning log version (``version_N``) a file lies under, -1 if none."""
+    numbers = [int(part[8:]) for part in path.parts if part.startswith("version_") and part[8:].isdigit()]
+    return numbers[-1] if numbers else -1
+
+
 def _last_checkpoint(fit_dir: Path) -> Path:
-    """``last.ckpt`` when saved, else the newest checkpoint under the fit logs."""
-    checkpoints = sorted(fit_dir.rglob("*.ckpt"), key=lambda p: (p.name == "last.ckpt", p.stat().st_mtime))
+    """The newest log version's ``last.ckpt`` when saved, else its newest checkpoint (a resumed fit
+    logs into a new version; the ``last.ckpt`` a SIGTERM left in the old one is not its result)."""
+    checkpoints = sorted(fit_dir.rglob("*.ckpt"),
+                         key=lambda p: (_version(p), p.name == "last.ckpt", p.stat().st_mtime))
     if not checkpoints:
         raise RuntimeError(f"fit wrote no checkpoint under {fit_dir}")
     return checkpoints[-1]
@@ -289,8 +303,9 @@ def _test_metrics(test_dir: Path) -> dict[str, float]:
 def _cli(command: str, args: list[str]) -> None:
     from radar2shape import cli
 
-    with cli.errors_raised():  # a failed run keeps its traceback in its folder
+    with cli.errors_raised(), preemption.caller_reports():  # a failed run keeps its traceback in its folder
         code = cli.main([command, *args])
+    preemption.raise_if_received()  # SIGTERM after the last batch: the command finished, the sweep stops
     if code:
         raise RuntimeError(f"radar2shape {command} exited with code {code}")
 
@@ -335,6 +350,7 @@ def execute(grid: Grid, run: Run) -> dict:
         print(f"[sweep] {run.name}: resuming from {resume}", flush=True)
     else:
         if run_dir.exists():
+            (run_dir / DONE).unlink(missing_ok=True)  # first: a report reading meanwhile sees an unfinished run
             shutil.rmtree(run_dir)  # an unfinished run: its partial logs would confuse the next one
         run_dir.mkdir(parents=True)
         _write_atomic(run_dir / "run.yaml", yaml.safe_dump({"name": run.name, "grid": str(grid.path), run.command: args}))
@@ -359,7 +375,11 @@ def run_prepare(grid: Grid) -> None:
     """Run the grid's ``prepare`` commands (``radar2shape`` subcommands) in order."""
     for command in grid.prepare:
         print(f"[sweep] prepare: radar2shape {' '.join(command)}", flush=True)
-        _cli(command[0], command[1:])
+        try:
+            _cli(command[0], command[1:])
+        except preemption.Preempted as stop:
+            stop.detail = stop.detail or f"prepare step radar2shape {' '.join(command)}"
+            raise
 
 
 def select_runs(grid: Grid, only: list[str] | None) -> list[Run]:
@@ -390,6 +410,9 @@ def run_grid(grid: Grid, only: list[str] | None = None, keep_going: bool = False
             continue
         try:
             record = execute(grid, run)
+        except preemption.Preempted as stop:  # not a failure: the run stays resumable
+            stop.detail = stop.detail or f"run {run.name}" + (f" (saved {stop.checkpoint})" if stop.checkpoint else "")
+            raise
         except Exception:
             failed += 1
             run_dir.mkdir(parents=True, exist_ok=True)
@@ -411,7 +434,11 @@ def run_grid_parallel(grid: Grid, runs: list[Run], jobs: int, keep_going: bool, 
     """Up to ``jobs`` runs at once, each a child process running exactly one run
     (:func:`child_main`), started in file order once its dependencies have finished. A child's output
     goes to ``<out_dir>/<run>.log``; the resume and redo rules are those of :func:`run_grid`.
-    Returns the number of runs that failed."""
+    Returns the number of runs that failed.
+
+    SIGTERM (to this process, or a run ending with :data:`radar2shape.preemption.EXIT_CODE`) is
+    passed on to every running run, which saves its checkpoint; once all have ended the sweep
+    raises :class:`radar2shape.preemption.Preempted`."""
     import subprocess
 
     todo = []
@@ -427,6 +454,37 @@ def run_grid_parallel(grid: Grid, runs: list[Run], jobs: int, keep_going: bool, 
     code = ("import sys; from radar2shape.sweep import child_main; "
             "sys.exit(child_main(sys.argv[1], sys.argv[2], int(sys.argv[3])))")
     stop = False
+    try:
+        return _parallel_loop(grid, todo, jobs, keep_going, threads, waiting, running, code, failed, stop)
+    except preemption.Preempted as preempted:
+        cut = _stop_children(running)
+        preempted.detail = f"runs {', '.join(sorted(cut))}" if cut else None
+        raise
+
+
+def _stop_children(running: dict) -> list[str]:
+    """SIGTERM to every running child, then wait for all (they save their checkpoints); their names."""
+    import signal
+
+    for process in running.values():
+        if process.poll() is None:
+            try:
+                os.kill(process.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+    for process in running.values():
+        while True:
+            try:
+                process.wait()
+                break
+            except preemption.Preempted:  # a further SIGTERM: still wait for the checkpoints
+                continue
+    return list(running)
+
+
+def _parallel_loop(grid, todo, jobs, keep_going, threads, waiting, running, code, failed, stop) -> int:
+    import subprocess
+
     while (todo and not stop) or running:
         for run in [r for r in todo if not stop and len(running) < jobs and _ready(grid, r, waiting - {r.name})]:
             if len(running) >= jobs:
@@ -449,6 +507,8 @@ def run_grid_parallel(grid: Grid, runs: list[Run], jobs: int, keep_going: bool, 
         for name, process in list(running.items()):
             if process.poll() is None:
                 continue
+            if process.returncode in (preemption.EXIT_CODE, -preemption.signal.SIGTERM):  # stopped by SIGTERM
+                raise preemption.Preempted()
             del running[name]
             waiting.discard(name)
             if process.returncode == 0:
@@ -463,7 +523,7 @@ def run_grid_parallel(grid: Grid, runs: list[Run], jobs: int, keep_going: bool, 
 def child_main(grid_path: str, name: str, threads: int) -> int:
     """One run of a parallel sweep, in its own process (1 when it failed: its folder says why)."""
     grid = load_grid(grid_path)
-    with torch_threads(threads or None):
+    with preemption.sigterm_stops(), preemption.caller_reports(), torch_threads(threads or None):
         try:
             return run_grid(grid, [name], keep_going=True)
         except Exception:  # noqa: BLE001 - run_grid already wrote the traceback to the run's folder

@@ -6,7 +6,8 @@ unit cube, longest side 1); ``--normalise`` first maps both by the ground truth'
 a point cloud (.ply without faces, or .npy [N, 3]): a point set gets no IoU (null).
 An empty prediction (a mesh file with no geometry, an empty point array) scores the worst
 values; a file that is not what its suffix says (text named .obj) is refused, as is any
-unreadable file. A prediction whose size differs from the ground truth's by more than 10x gets
+unreadable file, and so are meshes whose face counts (read from the file headers before loading,
+``preflight.BYTES_PER_FACE`` each) need more memory than the limit. A prediction whose size differs from the ground truth's by more than 10x gets
 a one-line warning (the metrics assume one frame; see ``--normalise``). Lightning and torch are
 never imported, so scoring a folder of meshes pays only numpy / trimesh start-up per file.
 """
@@ -24,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from radar2shape.errors import UserInputError
-from radar2shape.preflight import add_memory_option, check_input_file, check_memory
+from radar2shape.preflight import add_memory_option, check_input_file, check_memory, count_faces, mesh_bytes
 
 if TYPE_CHECKING:
     import trimesh
@@ -64,10 +65,15 @@ def main(args: argparse.Namespace) -> int:
             raise UserInputError(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name)}")
     if args.seed < 0:
         raise UserInputError(f"--seed: expected a non-negative integer, got {args.seed}")
-    check_memory(args.occ_points * BYTES_PER_OCC_POINT + args.points * BYTES_PER_SURFACE_POINT,
-                 f"--points {args.points} with --occ-points {args.occ_points}", args.memory_limit_gb)
+    points_bytes = args.occ_points * BYTES_PER_OCC_POINT + args.points * BYTES_PER_SURFACE_POINT
+    check_memory(points_bytes, f"--points {args.points} with --occ-points {args.occ_points}", args.memory_limit_gb)
     check_input_file(args.pred, "pred", "a predicted mesh or point cloud")
     check_input_file(args.gt, "gt", "a ground-truth mesh")
+    faces = {path: count_faces(path) or 0 for path in (args.pred, args.gt)}
+    if any(faces.values()):  # from the headers, before either mesh is loaded
+        check_memory(points_bytes + sum(mesh_bytes(n) for n in faces.values()),
+                     " and ".join(f"{path} ({n} faces)" for path, n in faces.items()) + f" scored with --points "
+                     f"{args.points} and --occ-points {args.occ_points}", args.memory_limit_gb)
     scores = evaluate_files(args.pred, args.gt, args.points, args.occ_points, args.tau, args.seed, args.normalise)
     if args.json:
         print(json.dumps({k: (None if math.isnan(v) else v) for k, v in scores.items()}))

@@ -24,7 +24,6 @@ torch and Lightning are imported only once the arguments are parsed.
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
 import sys
 import time
@@ -36,7 +35,7 @@ import numpy as np
 from radar2shape.atomic import atomic_path, atomic_paths, check_output_path
 from radar2shape.errors import UserInputError
 from radar2shape.preflight import add_memory_option, check_input_file, check_memory, memory_limit_bytes
-from radar2shape.pretrained import DEFAULT_MODEL, RADAR_DIFFUSION, RADAR_SPEC_KEY
+from radar2shape.pretrained import DEFAULT_MODEL, load_model
 
 if TYPE_CHECKING:
     import torch
@@ -52,7 +51,26 @@ IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
 BYTES_PER_GRID_CELL = 24
 
 
+class AboutAction(argparse.Action):
+    """``--about``: print the shipped model's card and exit, like ``--help`` (no other option needed)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from radar2shape.pretrained import model_card
+
+        try:
+            text = model_card()
+        except UserInputError as err:
+            parser.exit(2, f"error: {err}\n")
+        sys.stdout.write(text)
+        parser.exit(0)
+
+
 def configure_parser(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--about", action=AboutAction,
+                        help="print the shipped model's card (training data, scores, limits) and exit")
     parser.add_argument("--ckpt", type=Path,
                         help="RadarDiffusion or roll-symmetric profile model checkpoint (.ckpt); default: the "
                         f"model shipped with radar2shape ({DEFAULT_MODEL}, radar2shape.pretrained.DEFAULT_MODEL)")
@@ -81,49 +99,6 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     add_memory_option(parser)
     parser.epilog = ("Bad input is one 'error:' line (exit code 2) and nothing is written; outputs appear "
                      "complete or not at all.")
-
-
-def _model_class(path: Path, hparams: dict):
-    """The checkpoint's LightningModule class: its ``_class_path`` (LightningCLI), else RadarDiffusion."""
-    from radar2shape.models.profile_diffusion import ProfileModel
-    from radar2shape.models.radar_diffusion import RadarDiffusion
-
-    class_path = hparams.get("_class_path", RADAR_DIFFUSION)
-    module, _, name = class_path.rpartition(".")
-    try:
-        cls = getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError) as err:
-        raise UserInputError(f"--ckpt: {path} names model class {class_path!r}, which cannot be imported ({err})") from err
-    if not (isinstance(cls, type) and issubclass(cls, (RadarDiffusion, ProfileModel))):
-        raise UserInputError(f"--ckpt: {path} holds a {class_path}; expected a RadarDiffusion or a profile model")
-    return cls
-
-
-def load_model(path: Path):
-    """The checkpoint's model on the CPU in eval mode, its ``radar_spec`` read from the checkpoint.
-
-    A checkpoint without a radar spec (saved before checkpoints stored one) is refused: its
-    normalisation cannot be recovered without the training data, so the model must be retrained.
-    """
-    from radar2shape.checkpoints import load_checkpoint
-    from radar2shape.radar.spec import RadarSpec
-
-    checkpoint = load_checkpoint(path, "a reconstruction model checkpoint", label="--ckpt")
-    hparams = checkpoint.get("hyper_parameters")
-    if not isinstance(hparams, dict):
-        raise UserInputError(f"--ckpt: {path}: 'hyper_parameters' is a {type(hparams).__name__}, expected a dict "
-                             "(not a reconstruction model checkpoint)")
-    cls = _model_class(path, dict(hparams))
-    if checkpoint.get(RADAR_SPEC_KEY) is None:
-        raise UserInputError(f"--ckpt: {path} stores no radar spec (it was saved before checkpoints stored one, "
-                             "or not fitted on a radar DataModule); retrain the model")
-    spec = RadarSpec.from_dict(checkpoint[RADAR_SPEC_KEY], f"--ckpt: {path}: {RADAR_SPEC_KEY}")
-    try:
-        model = cls.load_from_checkpoint(path, map_location="cpu", weights_only=True)
-    except (KeyError, TypeError, ValueError, RuntimeError, AttributeError, EOFError) as err:
-        raise UserInputError(f"--ckpt: {path} is not a reconstruction model checkpoint ({type(err).__name__}: {err})") from err
-    model.set_radar_spec(spec)  # checked against the network: a spec that does not fit is refused
-    return model.eval()
 
 
 def is_profile_model(model) -> bool:

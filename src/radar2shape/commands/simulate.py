@@ -7,7 +7,8 @@ longest bounding-box side is ``--size-m`` metres (default: the grid's size_m, 1 
 ``--keep-size`` simulates it as given, in metres.
 
 Everything is checked before the simulation starts (axes, options, the memory the grid needs,
-both output paths, the mesh), and the outputs are written together at the end, atomically: a
+both output paths, the mesh and the memory its faces need, counted from the file's header before it
+is loaded: preflight.BYTES_PER_FACE per face), and the outputs are written together at the end, atomically: a
 failed run leaves no file behind.
 """
 
@@ -20,7 +21,7 @@ import numpy as np
 
 from radar2shape.atomic import atomic_paths, check_output_path
 from radar2shape.errors import UserInputError
-from radar2shape.preflight import add_memory_option, check_input_file, check_memory
+from radar2shape.preflight import add_memory_option, check_input_file, check_memory, check_mesh_memory, count_faces
 
 # Mesh, radar and plotting modules are imported in main(): ``--help`` and argument errors stay fast.
 IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
@@ -53,6 +54,8 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     size = parser.add_mutually_exclusive_group()
     size.add_argument("--size-m", type=float, help="longest bbox side in metres after centring (default: grid size_m)")
     size.add_argument("--keep-size", action="store_true", help="simulate the mesh as given, in metres")
+    parser.add_argument("--up", default="z", choices=["x", "y", "z", "-x", "-y", "-z"],
+                        help="the file's up axis, turned onto +z, the body frame's (AC3D, glTF: y; default z)")
     parser.add_argument("--no-shadow", action="store_true", help="back-face culling only (no occlusion rays)")
     parser.add_argument("--method", default="po", choices=["po", "sbr", "po+ec", "sbr+ec"],
                         help="po, sbr (PO first bounce + shooting and bouncing rays, docs/sbr_lora.md), "
@@ -106,6 +109,15 @@ def main(args: argparse.Namespace) -> int:
         if outputs[1].resolve() == outputs[0].resolve():
             raise UserInputError(f"--plot: {args.plot} is also --out; expected two different files")
     check_input_file(args.mesh, "mesh", "a mesh file")
+    grid_text = f"{len(grid.aspect_rad)} x {len(grid.roll_rad)} x {len(grid.freq_hz)} (aspect x roll x freq)"
+
+    def check_faces(faces: int) -> None:
+        check_mesh_memory(faces, cells * BYTES_PER_CELL, f"{args.mesh}: a mesh of {faces} faces with a response "
+                          f"of {grid_text}", args.memory_limit_gb)
+
+    declared = count_faces(args.mesh)
+    if declared is not None:
+        check_faces(declared)  # before loading: a mesh too large for memory is refused at once
 
     from radar2shape.geometry.mesh_io import load_mesh
     from radar2shape.geometry.normalise import normalise, scaled
@@ -113,6 +125,12 @@ def main(args: argparse.Namespace) -> int:
     from radar2shape.radar.edges import ALL_POLARIZATIONS
 
     mesh = load_mesh(args.mesh)
+    if args.up != "z":  # into the body frame: aspect from +z, roll from +x
+        from radar2shape.geometry.frames import to_body_frame
+
+        mesh = to_body_frame(mesh, args.up)
+    if declared is None or len(mesh.faces) > declared:  # polygons split into more triangles
+        check_faces(len(mesh.faces))
     if size is not None:
         mesh = scaled(normalise(mesh)[0], size)
     start = time.perf_counter()

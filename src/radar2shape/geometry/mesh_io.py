@@ -14,7 +14,7 @@ import trimesh
 
 from radar2shape.errors import UserInputError
 
-MESH_SUFFIXES = (".off", ".obj", ".ply", ".stl", ".glb", ".gltf")
+MESH_SUFFIXES = (".off", ".obj", ".ply", ".stl", ".glb", ".gltf", ".dae", ".ac")
 # Formats written as one self-contained file (.gltf puts its buffers in extra files).
 WRITE_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb")
 
@@ -28,6 +28,11 @@ def load_mesh(path: str | Path) -> trimesh.Trimesh:
     path = Path(path)
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise MeshError(f"{path}: unsupported suffix {path.suffix!r} (expected one of {', '.join(MESH_SUFFIXES)})")
+    if path.suffix.lower() in (".ac", ".dae"):  # our readers: AC3D, and COLLADA with its unit and up axis
+        from radar2shape.geometry.ac3d import read_ac3d
+        from radar2shape.geometry.gazebo import load_collada
+
+        return clean(read_ac3d(path) if path.suffix.lower() == ".ac" else load_collada(path), name=str(path))
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as err:  # trimesh raises many types for malformed files

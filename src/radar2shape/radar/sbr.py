@@ -46,6 +46,7 @@ from radar2shape.errors import UserInputError
 from radar2shape.radar import po
 from radar2shape.radar.edges import polarisation_basis
 from radar2shape.radar.facets import FacetMesh
+from radar2shape.radar.workers import worker_count
 
 DEFAULT_BOUNCES = 5
 DEFAULT_RAYS_PER_WAVELENGTH = 8.0
@@ -112,8 +113,6 @@ def _positive_int(value, name: str) -> int:
 
 def default_workers() -> int:
     """Worker processes when none are asked for: the simulator's count (torch threads or usable cores)."""
-    from radar2shape.radar.simulator import worker_count  # the simulator imports this module
-
     return worker_count()
 
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import sys
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -13,6 +11,7 @@ from radar2shape.radar import edges, po, sbr
 from radar2shape.radar.facets import FacetMesh, facet_mesh
 from radar2shape.radar.heap import keep_freed_blocks
 from radar2shape.radar.shadow import Occluder
+from radar2shape.radar.workers import worker_count  # re-exported: callers import it from here
 
 METHODS = ("po", "sbr", "po+ec", "sbr+ec")
 # Facet-direction pairs per chunk: the [F, chunk] float64 work arrays stay near cache size
@@ -58,14 +57,6 @@ def _real_dtype(dtype):
     if dtype == np.complex128:
         return np.float64
     raise UserInputError(f"dtype: expected complex64 or complex128, got {dtype}")
-
-
-def worker_count() -> int:
-    """Threads for the chunk loop: torch's setting when torch is loaded, else the usable cores."""
-    torch = sys.modules.get("torch")
-    if torch is not None:
-        return max(1, torch.get_num_threads())
-    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
 def _sbr_part(facets, u, k, names, max_bounces, rays_per_wavelength, real_dtype) -> np.ndarray:

@@ -1,0 +1,106 @@
+"""A trained model scored as it is, on any dataset with its radar grid: the shipped model's test row.
+
+``radar2shape test`` builds its model from a config, which a trained checkpoint (the model shipped
+in the package above all) does not need: :class:`CheckpointModel` loads one through
+:func:`radar2shape.pretrained.load_model` and hands it the test batches, so the same evaluator,
+diagnostics and reports score it as every other row. A model normalises its dB input with the
+statistics of its own training set, while the DataModule normalises with the test set's; the
+batches are put back into the model's normalisation (:func:`renormalise`) before it reads them.
+Nothing is trained: run it with ``radar2shape test`` only, e.g.
+``--model radar2shape.models.checkpoint_model.CheckpointModel --model.init_args.ckpt default``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from radar2shape.errors import UserInputError
+from radar2shape.models.base import Reconstruction, ReconstructionModel
+from radar2shape.radar.spec import RadarSpec
+
+DEFAULT = "default"  # the model shipped in the package (radar2shape.pretrained.DEFAULT_MODEL)
+
+
+def renormalise(radar: torch.Tensor, mask: torch.Tensor, source: RadarSpec, target: RadarSpec) -> torch.Tensor:
+    """Normalised dB under ``source``'s statistics -> the same dB under ``target``'s; masked cells stay 0."""
+    db = radar.double() * source.db_std + source.db_mean
+    out = ((db - target.db_mean) / target.db_std).to(radar.dtype)
+    return torch.where(mask[..., None], out, torch.zeros_like(out))
+
+
+def check_same_grid(data: RadarSpec, model: RadarSpec, ckpt: str) -> None:
+    """Refuse test data whose radar grid or dB floor is not the one the model was trained on."""
+    a, b = data.to_dict(), model.to_dict()
+    def same(x, y) -> bool:
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        return x.shape == y.shape and np.allclose(x, y, rtol=1e-9, atol=0)
+
+    differ = [key for key in ("aspect_rad", "roll_rad", "freq_hz", "size_m", "roll_symmetric", "floor_db")
+              if not same(a[key], b[key])]
+    if differ:
+        raise UserInputError(f"model.init_args.ckpt: {ckpt} was trained on radar {model.describe()}; the test data "
+                             f"has {data.describe()} (differs in {', '.join(differ)})")
+
+
+class CheckpointModel(ReconstructionModel):
+    """Reconstructions of a trained RadarDiffusion or profile model checkpoint, unchanged.
+
+    Args:
+        ckpt: checkpoint path, or ``"default"`` for the model shipped in the package.
+        num_samples: K sampled shapes averaged per reconstruction (None: the checkpoint's own).
+    """
+
+    def __init__(self, ckpt: str = DEFAULT, num_samples: int | None = None) -> None:
+        super().__init__()
+        self.save_hyperparameters()
+        from radar2shape.pretrained import default_checkpoint
+
+        if num_samples is not None and num_samples < 1:
+            raise UserInputError(f"model.init_args.num_samples: expected a positive count, got {num_samples}")
+        self.ckpt_path = str(default_checkpoint() if ckpt == DEFAULT else ckpt)
+        self.inner = None
+        self._data_spec: RadarSpec | None = None
+
+    def load(self):
+        """The wrapped model, loaded on first use.
+
+        Not in ``__init__``: the Lightning CLI builds this class inside a context that hands the
+        hyperparameters it was given to every LightningModule constructed meanwhile, the loaded
+        checkpoint's model included, which would then lose its own.
+        """
+        if self.inner is None:
+            from radar2shape.pretrained import load_model
+
+            inner = load_model(self.ckpt_path, label="model.init_args.ckpt")
+            if self.hparams.num_samples is not None:
+                inner.hparams.num_samples = int(self.hparams.num_samples)
+            self.inner = inner.requires_grad_(False)
+        return self.inner
+
+    def setup(self, stage: str) -> None:
+        if stage != "test":
+            raise UserInputError("CheckpointModel scores a trained model as it is: run it with 'radar2shape test'")
+        spec = getattr(self.trainer.datamodule, "radar_spec", None)
+        if spec is None:
+            raise UserInputError("CheckpointModel needs a DataModule with a radar_spec (data_modules.ShapeDataModule)")
+        check_same_grid(spec, self.load().radar_spec, self.ckpt_path)
+        self._data_spec = spec
+
+    def losses(self, batch: dict) -> dict[str, torch.Tensor]:
+        """Nothing is trained; scores come from :meth:`reconstruct`."""
+        return {}
+
+    def _model_batch(self, batch: dict) -> dict:
+        if self._data_spec is None:
+            raise RuntimeError("CheckpointModel.setup('test') has not run (attach it to a Trainer)")
+        radar = renormalise(batch["radar"], batch["radar_mask"], self._data_spec, self.inner.radar_spec)
+        return {**batch, "radar": radar}
+
+    @torch.no_grad()
+    def reconstruct(self, batch: dict) -> list[Reconstruction]:
+        return self.inner.reconstruct(self._model_batch(batch))
+
+    @torch.no_grad()
+    def reconstruct_ceiling(self, batch: dict) -> list[Reconstruction] | None:
+        return self.inner.reconstruct_ceiling(self._model_batch(batch))

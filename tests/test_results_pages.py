@@ -1,0 +1,53 @@
+"""docs/results.md, the model card and README's table are generated from the committed reports: no drift."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from radar2shape.reporting import results
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_committed_pages_match_the_reports():
+    stale = results.write_pages(ROOT, check=True)
+    assert not stale, f"regenerate with `make results`: {[str(p.relative_to(ROOT)) for p in stale]}"
+
+
+def test_model_card_quotes_the_shipped_runs_per_shape_scores():
+    with (ROOT / "reports/table1-medium/scores/radar2shape-full-seed0.csv").open() as handle:
+        iou = np.mean([float(row["iou"]) for row in csv.DictReader(handle)])
+    card = (ROOT / results.MODEL_CARD).read_text()
+    assert f"| full | {iou:.3f} |" in card
+    assert card == (ROOT / results.PACKAGED_CARD).read_text()  # what `reconstruct --about` prints
+
+
+def test_a_hand_edit_is_caught(tmp_path):
+    for relative in ("reports/table1-medium", "reports/table1", "reports/rollsym-medium", "reports/monocone",
+                     "reports/parts_medium"):
+        shutil.copytree(ROOT / relative, tmp_path / relative)
+    for page in (results.RESULTS_PAGE, results.MODEL_CARD, results.PACKAGED_CARD, results.README):
+        (tmp_path / page).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(ROOT / page, tmp_path / page)
+    assert results.write_pages(tmp_path, check=True) == []
+    page = tmp_path / results.RESULTS_PAGE
+    page.write_text(page.read_text().replace("0.553 ± 0.214", "0.653 ± 0.214", 1))
+    readme = tmp_path / results.README
+    readme.write_text(readme.read_text().replace("| Radar2Shape | 0.553", "| Radar2Shape | 0.563", 1))
+    assert set(results.write_pages(tmp_path, check=True)) == {page, readme}
+    assert set(results.write_pages(tmp_path)) == {page, readme}  # rewritten from the reports
+    assert results.write_pages(tmp_path, check=True) == []
+
+
+def test_about_prints_the_card(capsys):
+    from radar2shape.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["reconstruct", "--about"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out == (ROOT / results.PACKAGED_CARD).read_text()
