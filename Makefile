@@ -47,7 +47,6 @@ data-real: install ## Build the real-target dataset (FlightGear + Gazebo, conf/d
 	  (cd $(REAL_SRC).partial/debs && apt-get download flightgear-data-ai flightgear-data-models); \
 	  for deb in $(REAL_SRC).partial/debs/*.deb; do dpkg-deb -x "$$deb" $(REAL_SRC).partial; done; \
 	  rm -rf $(REAL_SRC).partial/debs $(REAL_SRC); mv $(REAL_SRC).partial $(REAL_SRC); fi
-	@$(PY) -c "import collada" 2>/dev/null || $(PY) -m pip install --quiet pycollada  # COLLADA (Gazebo) reader
 	$(VENV)/bin/radar2shape build-data --config conf/data/real.yaml --out data/real --workers $(WORKERS)
 
 fit: install ## Train: make fit CONFIG="conf/trainer/cpu.yaml conf/callbacks/shape_metrics.yaml conf/experiment/NAME.yaml"
@@ -81,3 +80,4 @@ bench: install ## Run the speed benchmarks under bench/
 clean: ## Remove the environment, runs, built data and reports
 	rm -rf $(VENV) runs data reports/demo wandb lightning_logs .pytest_cache
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +
+

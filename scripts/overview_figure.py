@@ -69,7 +69,7 @@ def main(argv=None) -> int:
                  "radar_mask": torch.ones(db.shape[:2], dtype=torch.bool)[None], "index": torch.tensor([index])}
         recon = model.reconstruct(batch)[0]
         score = score_reconstruction(recon, record["eval_points"], record["occ_points"], record["occ_inside"])
-        truth = record["surface_points"]
+        truth = record["eval_points"]
         predicted = sample_surface(recon.mesh, 20_000, 0)[0] if recon.mesh is not None and len(recon.mesh.faces) else truth[:0]
         axes[row, 0].imshow(depth_image(truth, -55, 25), cmap="viridis", vmin=-0.6, vmax=0.6)
         axes[row, 0].set_title(f"{record['class_name']} (never seen)", fontsize=10)

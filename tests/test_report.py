@@ -2,6 +2,7 @@
 
 import csv
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -175,27 +176,38 @@ def test_missing_grid_is_a_one_line_error(tmp_path, capsys):
     assert "nope.yaml (give a name under conf/grid/" in capsys.readouterr().err
 
 
-def test_demo_layout_tables_per_observability(tmp_path, monkeypatch):
-    """The demo grid's runs -> README.md with one table per observability, CSVs, and the verdict line."""
+def test_demo_layout_leads_with_the_shipped_model(tmp_path, monkeypatch):
+    """The demo grid's runs -> README.md that explains itself, then the shipped model on unseen shapes,
+    then one table per observability of the platform check, CSVs; no file it cites is missing."""
     monkeypatch.chdir(REPO)
     grid = sweep.load_grid("demo")
     assert [r.name for r in grid.runs if r.command == "fit"] == ["stage1", "stage2"] and not grid.test
+    assert [r.name for r in grid.runs][:2] == ["shipped-unseen", "nearest-unseen"]
     grid.out_dir = tmp_path / "runs"
-    values = {"radar2shape": (14.0, 0.26, 0.08), "nearest": (8.0, 0.43, 0.17), "mean_shape": (79.0, 0.04, 0.02)}
+    values = {"radar2shape": (14.0, 0.26, 0.08), "nearest": (8.0, 0.43, 0.17), "mean_shape": (79.0, 0.04, 0.02),
+              "shipped": (3.0, 0.55, 0.40)}
     for run in grid.runs:
         row = run.name.split("-")[0]
         if row in values:
             finished_run(grid.out_dir / run.name, *values[row], saved=())
     out = tmp_path / "demo"
     text = write_report(grid, out).read_text()
-    full, partial = text.split("## Full observability")[1].split("## Partial observability")
-    assert "| Radar2Shape | 14.00 ± 0.10 | 0.260 ± 0.050 | 0.080 ± 0.020 |" in full
-    assert "| nearest-neighbour | **8.00 ± 0.10** | **0.430 ± 0.050** | **0.170 ± 0.020** |" in partial
-    assert "(full observability): **yes**" in text and "| stage1 | missing |" in text
+    intro, rest = text.split("## 1. The shipped model on 20 unseen parts shapes", 1)
+    assert "**1. The shipped model on shapes it has never seen.**" in intro and "**2. The platform check.**" in intro
+    unseen, platform = rest.split("## 2. Platform check: tiny models, full observability")
+    full, partial = platform.split("## 2. Platform check: tiny models, partial observability")
+    assert "| Radar2Shape, shipped model | **3.00 ± 0.10** | **0.550 ± 0.050** | **0.400 ± 0.020** |" in unseen
+    assert "| nearest-neighbour lookup | 8.00 ± 0.10 | 0.430 ± 0.050 | 0.170 ± 0.020 |" in unseen
+    assert "| Radar2Shape, tiny (trained here) | 14.00 ± 0.10 | 0.260 ± 0.050 | 0.080 ± 0.020 |" in full
+    assert "| nearest-neighbour lookup | **8.00 ± 0.10** | **0.430 ± 0.050** | **0.170 ± 0.020** |" in partial
+    assert "| stage1 | missing |" in text
+    for cited in re.findall(r"((?:docs|reports|conf)/[\w./-]+\.(?:md|yaml))", text):
+        assert (REPO / cited).is_file(), f"the demo report cites {cited}, which does not exist"
     with (out / "table_partial.csv").open() as handle:
         rows = list(csv.DictReader(handle))
-    assert [r["model"] for r in rows] == ["Radar2Shape", "nearest-neighbour", "mean-shape"]
+    assert [r["model"] for r in rows] == ["Radar2Shape, tiny (trained here)", "nearest-neighbour lookup", "mean-shape"]
     assert float(rows[2]["chamfer_l2_x1e3_mean"]) == 79.0
+    assert (out / "table_unseen.csv").is_file()
 
 
 @pytest.mark.parametrize("name", ["table1", "table1-paper"])

@@ -31,6 +31,10 @@ class UserInputError(ValueError):
         super().__init__(*args)
 
 
+class MeshError(UserInputError):
+    """A mesh file or mesh that cannot become a record (the message says why)."""
+
+
 class DiskFullError(UserInputError, OSError):
     """A write that found no space (or quota) left: names the target and the free space.
 

@@ -196,7 +196,7 @@ def test_config_errors_name_the_field(tmp_path, text, message):
         ("family: parts\nnum: 3\nfloor_db: quiet\n", r"key 'floor_db': .*'quiet'.*Float"),
         ("family: parts\nnum: [3\n", r"YAML syntax error \(line 3, column 1\)"),
         ("- family\n- parts\n", r"expected a mapping of config keys, got list"),
-        ("family: nope\nnum: 3\n", r"unknown family 'nope'; choose from \['folder', 'frusta', 'monocone', 'parts'\]"),
+        ("family: nope\nnum: 3\n", r"unknown family 'nope'; choose from \['folder', 'frusta', 'monocone', 'parts', 'real'\]"),
         ("family: parts\nnum: 3\nfamily_options: {bogus: 1}\n", r"family_options: unknown key.*'bogus'.*'parts'.*segments"),
         ("family: parts\nnum: 3\nradar: {aspect_deg: {start: 0, stop: 180, count: 0}}\n",
          r"radar: aspect_deg.count: expected a positive integer, got 0"),

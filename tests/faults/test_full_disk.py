@@ -11,7 +11,8 @@ import pytest
 import torch
 import trimesh
 
-from conftest import REPO, files_of, fill, leftovers, one_error_line, radar2shape
+from fault_helpers import (REPO, files_of, fill, leftovers, one_error_line, radar2shape, reference_dataset,  # noqa: F401
+                           small_disk, tiny_config)
 
 
 def test_build_data_on_a_full_disk_stops_in_one_line_and_resumes_to_the_same_dataset(

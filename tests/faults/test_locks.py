@@ -44,7 +44,7 @@ def refusal(folder: Path, what: str, label: str, pid: int) -> re.Pattern:
 
 
 def test_a_second_sweep_is_refused_and_report_notes_the_writer(tmp_path, monkeypatch, capsys):
-    grid = toy_grid(tmp_path, jobs=1)
+    grid = toy_grid(tmp_path, jobs=1, epochs=500)
     runs = tmp_path / "runs"
     first = start("sweep", grid)
     try:
@@ -74,7 +74,8 @@ def test_a_second_sweep_is_refused_and_report_notes_the_writer(tmp_path, monkeyp
 
 def test_a_second_build_data_into_the_same_folder_is_refused(tmp_path):
     out = tmp_path / "data"
-    args = ["build-data", "--config", REPO / "conf/data/parts_tiny.yaml", "--out", out, "--num", 6, "--quiet"]
+    # many shapes: the first build is still running when the second asks (it is killed, not finished)
+    args = ["build-data", "--config", REPO / "conf/data/parts_tiny.yaml", "--out", out, "--num", 3000, "--quiet"]
     first = start(*args)
     try:
         wait_for_lock(out / ".build-data.lock", first)

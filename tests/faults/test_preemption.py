@@ -83,10 +83,10 @@ def test_sigterm_during_fit_saves_last_ckpt_and_resuming_equals_the_uninterrupte
     assert logged[0] == logged[1]  # the last epoch's validation loss, to the last digit
 
 
-def toy_grid(tmp_path, jobs: int, names=("a",)) -> Path:
+def toy_grid(tmp_path, jobs: int, names=("a",), epochs: int = EPOCHS) -> Path:
     runs = [{"name": name, "overrides": {"model.init_args.mlp_hidden": 16 + i}} for i, name in enumerate(names)]
     spec = {"out_dir": str(tmp_path / "runs"), "configs": [str(REPO / "conf/experiment/toy_sphere.yaml")],
-            "overrides": {"trainer.max_epochs": EPOCHS, "trainer.enable_progress_bar": False,
+            "overrides": {"trainer.max_epochs": epochs, "trainer.enable_progress_bar": False,
                           "trainer.enable_model_summary": False, "data.init_args.num_train": 8,
                           "data.init_args.num_val": 8},
             "test": False, "threads": 1, "jobs": jobs, "runs": runs}
@@ -120,7 +120,7 @@ def test_sigterm_during_a_sweep_leaves_the_run_resumable_and_the_rerun_resumes_i
 
 @pytest.mark.slow
 def test_sigterm_to_a_parallel_sweep_reaches_every_running_run(tmp_path):
-    grid = toy_grid(tmp_path, jobs=2, names=("a", "b"))
+    grid = toy_grid(tmp_path, jobs=2, names=("a", "b"), epochs=500)  # neither ends before the signal
     runs = tmp_path / "runs"
     sweep = start("sweep", grid)
     for name in ("a", "b"):
@@ -131,7 +131,7 @@ def test_sigterm_to_a_parallel_sweep_reaches_every_running_run(tmp_path):
                      f"rerun the same command to resume: radar2shape sweep {grid}"]
     for name in ("a", "b"):
         last = torch.load(runs / name / "fit/version_0/checkpoints/last.ckpt", map_location="cpu", weights_only=True)
-        assert last["global_step"] < EPOCHS
+        assert last["global_step"] < 500
         assert not (runs / name / "failed").exists() and not (runs / name / "done").exists()
     assert not temporaries(runs)
 

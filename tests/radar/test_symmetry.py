@@ -90,7 +90,7 @@ def test_turn_and_mirror_matches_the_transformed_solid(original, shift, mirror):
     assert np.allclose(out["vertices"], moved.vertices, atol=1e-12)
     assert np.array_equal(out["faces"], moved.faces)
     assert np.array_equal(query.contains(moved, out["occ_points"]), sample["occ_inside"])  # labels still hold
-    assert query.unsigned_distance(moved, out["surface_points"]).max() < 1e-9  # still on the surface
+    assert query.unsigned_distance(moved, out["surface_points"]).max() < 1e-6  # on the surface (float32 points)
     closest, _, triangle = trimesh.proximity.closest_point(moved, out["surface_points"])
     assert (np.einsum("ij,ij->i", out["surface_normals"], moved.face_normals[triangle]) > 0.999).mean() > 0.98
     assert out["sdf_values"] is sample["sdf_values"]

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from radar2shape.geometry.mesh_io import MeshError
+from radar2shape.errors import MeshError
 
 SURF_POLYGON, SURF_CLOSED_LINE, SURF_LINE, SURF_TRIANGLE_STRIP = 0, 1, 2, 4
 

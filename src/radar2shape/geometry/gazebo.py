@@ -23,7 +23,7 @@ import numpy as np
 import trimesh
 
 from radar2shape.geometry.frames import up_rotation
-from radar2shape.geometry.mesh_io import MeshError
+from radar2shape.errors import MeshError
 
 _UP = {"X_UP": "x", "Y_UP": "y", "Z_UP": "z"}
 

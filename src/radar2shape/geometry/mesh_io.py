@@ -12,15 +12,11 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from radar2shape.errors import UserInputError
+from radar2shape.errors import MeshError, UserInputError  # MeshError: importable from here too
 
 MESH_SUFFIXES = (".off", ".obj", ".ply", ".stl", ".glb", ".gltf", ".dae", ".ac")
 # Formats written as one self-contained file (.gltf puts its buffers in extra files).
 WRITE_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb")
-
-
-class MeshError(UserInputError):
-    """A mesh file or mesh that cannot become a record (the message says why)."""
 
 
 def load_mesh(path: str | Path) -> trimesh.Trimesh:

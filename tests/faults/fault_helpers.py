@@ -1,5 +1,8 @@
-"""Shared pieces of the fault tests: the CLI as a child process, a tiny build config, a reference
-dataset built once on the normal disk, and a small tmpfs to fill."""
+"""Helpers and fixtures of the fault tests: the CLI as a child process, a tiny build config, a
+reference dataset built on the normal disk, a small tmpfs to fill.
+
+A plain module the tests import (fixtures included), not a conftest.py: other folders' tests import
+their own ``conftest`` by name, which a second conftest module would shadow."""
 
 from __future__ import annotations
 
@@ -56,6 +59,16 @@ def files_of(folder: Path) -> dict[str, bytes]:
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
+def fill(disk: Path, leave: int) -> Path:
+    """Write a filler file so that about ``leave`` bytes stay free on ``disk``; returns it."""
+    filler = disk / "filler.bin"
+    free = shutil.disk_usage(disk).free
+    with open(filler, "wb") as handle:
+        handle.write(b"\0" * max(0, free - leave))
+    assert abs(shutil.disk_usage(disk).free - leave) <= 8192
+    return filler
+
+
 @pytest.fixture(scope="session")
 def tiny_config(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("config") / "tiny.yaml"
@@ -88,13 +101,3 @@ def small_disk(tmp_path) -> Path:
     finally:
         if subprocess.run(["umount", str(mount)], capture_output=True).returncode != 0:
             subprocess.run(["umount", "-l", str(mount)], capture_output=True)
-
-
-def fill(disk: Path, leave: int) -> Path:
-    """Write a filler file so that about ``leave`` bytes stay free on ``disk``; returns it."""
-    filler = disk / "filler.bin"
-    free = shutil.disk_usage(disk).free
-    with open(filler, "wb") as handle:
-        handle.write(b"\0" * max(0, free - leave))
-    assert abs(shutil.disk_usage(disk).free - leave) <= 8192
-    return filler
