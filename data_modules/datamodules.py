@@ -65,6 +65,9 @@ class ShapeDataModule(ReconstructionDataModule):
         skip_bad_records: replace a damaged record (truncated, corrupt, missing) by the next
             readable one instead of stopping, and log the count per epoch; off by default, so a
             damaged dataset is noticed (``radar2shape build-data --verify/--repair`` fixes it).
+        roll_augment: turn each training sample about z by a random whole number of roll steps and
+            mirror it with probability 1/2 (``data_modules.augment``): exact, since the response
+            only moves along roll, so one record gives 2R samples (the 3D data only).
     """
 
     dataset_class = RecordDataset
@@ -76,7 +79,7 @@ class ShapeDataModule(ReconstructionDataModule):
                  train_noise_db: float | tuple[float, float] | None = None, test_noise_db: float | None = None,
                  points: dict[str, dict[str, int]] | None = None, pin_memory: bool = False,
                  mask_rule: str = "per_axis", noise_reference: str = "absolute", cache_records: bool = False,
-                 skip_bad_records: bool = False):
+                 skip_bad_records: bool = False, roll_augment: bool = False):
         super().__init__()
         self.save_hyperparameters()
         self.root = Path(root)
@@ -88,6 +91,8 @@ class ShapeDataModule(ReconstructionDataModule):
         self.datasets: dict[str, RecordDataset] = {}
         self.skipped: Counter = Counter()  # substituted items per split since the last epoch report
         _keep_range("test_keep", test_keep)  # train_keep: checked by transform("train")
+        if roll_augment and self.roll_symmetric:
+            raise UserInputError("roll_augment: roll-symmetric data has one roll angle; turning it changes nothing")
         for split in ("train", "test"):
             self.transform(split)  # bad observability, mask or noise options fail here, not mid-epoch
 
@@ -130,7 +135,7 @@ class ShapeDataModule(ReconstructionDataModule):
             self.datasets[split] = self.dataset_class(
                 records, self.manifest["labels"][split], self.transform(split), self.points[split],
                 train=split == "train", seed=self.hparams.seed, cache=self.hparams.cache_records,
-                skip_bad=self.hparams.skip_bad_records,
+                skip_bad=self.hparams.skip_bad_records, roll_augment=self.hparams.roll_augment and split == "train",
             )
         return self.datasets[split]
 

@@ -31,6 +31,7 @@ POINT_KEYS = {  # subset name -> record keys sharing one index set
     "occ": ("occ_points", "occ_inside"),
 }
 _SPLIT_CODES = {"train": 0, "val": 1, "test": 2}
+AUGMENT_STREAM = 7  # a fifth seed word: the roll augmentation's own generator
 
 
 class RecordSet(Sequence):
@@ -85,7 +86,7 @@ class RecordDataset(Dataset):
     """
 
     def __init__(self, records: RecordSet, labels: list[int], transform: RadarTransform, points: dict[str, int],
-                 train: bool, seed: int = 0, cache: bool = False, skip_bad: bool = False):
+                 train: bool, seed: int = 0, cache: bool = False, skip_bad: bool = False, roll_augment: bool = False):
         unknown = sorted(set(points) - set(POINT_KEYS))
         if unknown:
             raise ValueError(f"points: unknown subset(s) {unknown}; expected some of {sorted(POINT_KEYS)}")
@@ -95,6 +96,7 @@ class RecordDataset(Dataset):
         self.keys = ["radar"] + [key for name in self.points for key in POINT_KEYS[name]] + self.extra_keys()
         self.cache: dict[int, dict] | None = {} if cache else None
         self.skip_bad = skip_bad
+        self.roll_augment = roll_augment
         self._reported: set[int] = set()  # bad records already warned about in this process
 
     def read(self, index: int) -> dict:
@@ -108,6 +110,18 @@ class RecordDataset(Dataset):
 
     def extra_keys(self) -> list[str]:
         return []
+
+    def turned(self, record: dict, epoch: int, index: int) -> dict:
+        """``record`` turned by a random whole number of roll steps and maybe mirrored (exact).
+
+        The draw has its own generator, so the mask, noise and point subsets of the item are the
+        ones it would have without the augmentation.
+        """
+        from data_modules.augment import turn_and_mirror
+
+        roll = self.transform.spec.grid.roll_rad
+        draw = np.random.default_rng([self.seed, _SPLIT_CODES.get(self.records.split, 3), epoch, index, AUGMENT_STREAM])
+        return turn_and_mirror(record, int(draw.integers(len(roll))), bool(draw.integers(2)), roll_rad=roll)
 
     def __len__(self) -> int:
         return len(self.records)
@@ -148,6 +162,8 @@ class RecordDataset(Dataset):
         """The item of record ``index`` in ``epoch`` (no substitution)."""
         rng = self.rng(epoch, index)
         record = self.read(index)
+        if self.roll_augment:
+            record = self.turned(record, epoch, index)
         radar, mask = self.radar(record["radar"], rng, index)
         item = {"radar": radar, "radar_mask": mask,
                 "label": np.int64(self.labels[index]), "index": np.int64(index)}

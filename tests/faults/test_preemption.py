@@ -146,7 +146,7 @@ def record_arrays(root: Path) -> dict:
 
 
 def test_sigterm_during_build_data_keeps_finished_records_and_the_rerun_is_byte_equal(tmp_path):
-    config, num = REPO / "conf/data/parts_tiny.yaml", 6
+    config, num = REPO / "conf/data/parts_tiny.yaml", 20
     args = ["build-data", "--config", config, "--out", tmp_path / "cut", "--num", num, "--quiet"]
     reference = start("build-data", "--config", config, "--out", tmp_path / "ref", "--num", num, "--quiet")
     cut = start(*args)

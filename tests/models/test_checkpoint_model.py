@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -38,7 +40,7 @@ def test_other_grid_is_refused_naming_the_axis():
 
 def test_scores_the_checkpoint_exactly_as_reconstruct_does(tiny, single_thread):  # noqa: F811
     wrapped = CheckpointModel(ckpt=str(tiny.exported))
-    model_spec = wrapped.load().radar_spec
+    model_spec = wrapped.inner.radar_spec
     data_spec = replace(model_spec, db_mean=model_spec.db_mean - 7.0, db_std=model_spec.db_std * 1.5)
     wrapped._data_spec = data_spec
     rng = np.random.default_rng(3)
@@ -63,5 +65,39 @@ def test_bad_checkpoint_is_one_line(tmp_path):
     text = tmp_path / "notes.ckpt"
     text.write_text("not a checkpoint")
     with pytest.raises(UserInputError, match="model.init_args.ckpt") as err:
-        CheckpointModel(ckpt=str(text)).load()
+        CheckpointModel(ckpt=str(text))
     assert "\n" not in str(err.value)
+
+
+def test_radar2shape_test_scores_a_checkpoint_through_the_cli(tiny, tmp_path, single_thread):  # noqa: F811
+    """`radar2shape test --model CheckpointModel` on a dataset of the checkpoint's grid: every test shape
+    scored with the diagnostics (the CLI builds the class inside its hyperparameter context)."""
+    import csv
+
+    import yaml
+
+    from data_modules.build import build_dataset
+    from data_modules.config import load_build_config
+    from radar2shape.cli import main
+
+    radar = tmp_path / "radar.yaml"
+    radar.write_text(yaml.safe_dump({"aspect_deg": {"start": 0.0, "stop": 180.0, "count": 4},
+                                     "roll_deg": {"start": 0.0, "stop": 360.0, "count": 8, "endpoint": False},
+                                     "freq_ghz": {"start": 8.0, "stop": 12.0, "count": 8}, "size_m": 1.0}))
+    config = tmp_path / "data.yaml"
+    config.write_text(yaml.safe_dump({"family": "parts", "family_options": {"segments": 12}, "seed": 0, "num": 6,
+                                      "splits": {"train": 3, "val": 1, "test": 2},
+                                      "mesh": {"face_budget": 2000, "remesh_resolution": 48},
+                                      "sampling": {"surface": 512, "eval": 512, "sdf": 512, "occ": 1024},
+                                      "radar": str(radar)}))
+    root = tmp_path / "data"
+    build_dataset(load_build_config(config), root, progress=False)
+    repo = Path(__file__).resolve().parents[2]
+    code = main(["test", "--config", str(repo / "conf/trainer/cpu.yaml"), "--config", str(repo / "conf/callbacks/shape_metrics.yaml"),
+                 "--model=radar2shape.models.checkpoint_model.CheckpointModel", f"--model.init_args.ckpt={tiny.exported}",
+                 "--data=data_modules.ShapeDataModule", f"--data.init_args.root={root}", "--data.init_args.observability=full",
+                 "--data.init_args.batch_size=2", f"--trainer.default_root_dir={tmp_path / 'run'}"])
+    assert code == 0
+    rows = list(csv.DictReader((tmp_path / "run/version_0/metrics.csv").open()))
+    logged = {k: float(v) for row in rows for k, v in row.items() if v != ""}
+    assert logged["test/iou_count"] == 2 and "test/radar_dependence_iou_mean" in logged and "test/ceiling_iou_mean" in logged

@@ -37,6 +37,18 @@ def check_hparam_names(hparams: dict, source: str) -> None:
         raise UserInputError(f"{source}: saved with retired hyperparameter names {', '.join(old)}; retrain the model")
 
 
+def optimizer_options(params: list[torch.Tensor]) -> dict:
+    """``fused=True`` where the fused Adam/AdamW kernel applies (float CPU/CUDA parameters, fast path on).
+
+    The per-parameter loop of the default CPU implementation costs a Python-level op chain per
+    tensor; the fused kernel updates each tensor in one pass (docs/throughput.md). Same update rule.
+    """
+    from radar2shape.nn.kernels import fast_enabled
+
+    usable = all(p.device.type in ("cpu", "cuda") and p.dtype in (torch.float32, torch.float64) for p in params)
+    return {"fused": True} if fast_enabled() and usable else {}
+
+
 def batch_size_of(batch: dict) -> int:
     """Number of samples in a batch: the leading size of its first tensor."""
     for value in batch.values():
@@ -123,7 +135,7 @@ class ReconstructionModel(L.LightningModule):
         if not params:
             return None
         optimizer = self.optimizer_class(params, lr=float(hp.get("lr", 1e-3)),
-                                         weight_decay=float(hp.get("weight_decay", 0.0)))
+                                         weight_decay=float(hp.get("weight_decay", 0.0)), **optimizer_options(params))
         decay_steps = int(hp.get("lr_decay_steps", 0) or 0)
         if decay_steps <= 0:
             return optimizer

@@ -12,6 +12,8 @@ Nothing is trained: run it with ``radar2shape test`` only, e.g.
 
 from __future__ import annotations
 
+import contextvars
+
 import numpy as np
 import torch
 
@@ -54,29 +56,18 @@ class CheckpointModel(ReconstructionModel):
     def __init__(self, ckpt: str = DEFAULT, num_samples: int | None = None) -> None:
         super().__init__()
         self.save_hyperparameters()
-        from radar2shape.pretrained import default_checkpoint
+        from radar2shape.pretrained import default_checkpoint, load_model
 
         if num_samples is not None and num_samples < 1:
             raise UserInputError(f"model.init_args.num_samples: expected a positive count, got {num_samples}")
         self.ckpt_path = str(default_checkpoint() if ckpt == DEFAULT else ckpt)
-        self.inner = None
+        # In a fresh context, as RadarDiffusion loads its Stage 1: the Lightning CLI builds this class
+        # inside a context that would hand our hyperparameters to the loaded model too.
+        inner = contextvars.Context().run(load_model, self.ckpt_path, "model.init_args.ckpt")
+        if num_samples is not None:
+            inner.hparams.num_samples = int(num_samples)
+        self.inner = inner.requires_grad_(False)
         self._data_spec: RadarSpec | None = None
-
-    def load(self):
-        """The wrapped model, loaded on first use.
-
-        Not in ``__init__``: the Lightning CLI builds this class inside a context that hands the
-        hyperparameters it was given to every LightningModule constructed meanwhile, the loaded
-        checkpoint's model included, which would then lose its own.
-        """
-        if self.inner is None:
-            from radar2shape.pretrained import load_model
-
-            inner = load_model(self.ckpt_path, label="model.init_args.ckpt")
-            if self.hparams.num_samples is not None:
-                inner.hparams.num_samples = int(self.hparams.num_samples)
-            self.inner = inner.requires_grad_(False)
-        return self.inner
 
     def setup(self, stage: str) -> None:
         if stage != "test":
@@ -84,7 +75,7 @@ class CheckpointModel(ReconstructionModel):
         spec = getattr(self.trainer.datamodule, "radar_spec", None)
         if spec is None:
             raise UserInputError("CheckpointModel needs a DataModule with a radar_spec (data_modules.ShapeDataModule)")
-        check_same_grid(spec, self.load().radar_spec, self.ckpt_path)
+        check_same_grid(spec, self.inner.radar_spec, self.ckpt_path)
         self._data_spec = spec
 
     def losses(self, batch: dict) -> dict[str, torch.Tensor]:
