@@ -29,7 +29,22 @@ from baselines.point_losses import chamfer_l2, nearest
 from baselines.radar_features import RadarFeatures
 from radar2shape.models.base import Reconstruction, ReconstructionModel
 from radar2shape.models.sdf_vae import truncated_l1
+from radar2shape.nn.kernels import fast_enabled
 from radar2shape.nn.mlp import MLP
+
+
+def split_mlp(mlp: MLP, per_query: torch.Tensor, per_shape: torch.Tensor, start: int) -> torch.Tensor:
+    """``mlp`` on ``[per_query[..., :start], per_shape (broadcast over queries), per_query[..., start:]]``.
+
+    The per-shape columns of the first layer are applied once per shape and added as a bias,
+    instead of being copied to every query and multiplied there: same function, and the widest
+    part of the first layer's matmul and of its input drops out (forward and backward).
+    """
+    first = mlp.net[0]
+    width = per_shape.shape[-1]
+    w_query = torch.cat([first.weight[:, :start], first.weight[:, start + width:]], dim=1)
+    bias = F.linear(per_shape, first.weight[:, start:start + width], first.bias)  # [B, H]
+    return mlp.net[1:](F.linear(per_query, w_query) + bias[:, None])
 
 
 def radar_coordinates(points: torch.Tensor) -> torch.Tensor:
@@ -106,6 +121,14 @@ class LIST(ReconstructionModel):
         cloud = self.cloud_encoder(coarse.detach()).max(dim=1).values
         return ShapeContext([proj(m) for proj, m in zip(self.project, maps)], z, coarse, cloud)
 
+    def query_parts(self, ctx: ShapeContext, queries: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The context split by what varies: per query ``[B, Q, 7]`` (query, nearest coarse offset and
+        distance) and per shape ``[B, feature_dim + cloud_dim]`` (global and cloud features)."""
+        d2, index = nearest(queries, ctx.coarse.detach())
+        near = torch.gather(ctx.coarse.detach(), 1, index[..., None].expand(-1, -1, 3))
+        per_query = torch.cat([queries, near - queries, d2.clamp(min=0).sqrt()[..., None]], dim=-1)
+        return per_query, torch.cat([ctx.z, ctx.cloud], dim=-1)
+
     def query_context(self, ctx: ShapeContext, queries: torch.Tensor) -> torch.Tensor:
         """``[B, Q, context_dim]``: the query, global feature, cloud feature and nearest coarse point."""
         d2, index = nearest(queries, ctx.coarse.detach())
@@ -121,8 +144,15 @@ class LIST(ReconstructionModel):
         b, q, _ = queries.shape
         k = self.hparams.n_offsets
         offsets = self.localise(qctx).reshape(b, q, k, 3)
+        return self._sample_maps(ctx, queries, offsets)
+
+    def _sample_maps(self, ctx: ShapeContext, queries: torch.Tensor, offsets: torch.Tensor) -> torch.Tensor:
         grid = radar_coordinates(queries)[:, :, None] + self.hparams.offset_scale * torch.tanh(offsets[..., :2])
         weights = torch.softmax(offsets[..., 2], dim=-1)  # [B, Q, K]
+        if fast_enabled():  # the attention weights are shared by the maps: sum the maps' samples first
+            sampled = sum(F.grid_sample(m, grid, mode="bilinear", padding_mode="border", align_corners=False)
+                          for m in ctx.maps)
+            return (sampled * weights[:, None]).sum(-1).transpose(1, 2)
         local = 0
         for feature_map in ctx.maps:
             sampled = F.grid_sample(feature_map, grid, mode="bilinear", padding_mode="border", align_corners=False)
@@ -131,6 +161,12 @@ class LIST(ReconstructionModel):
 
     def sdf(self, ctx: ShapeContext, queries: torch.Tensor) -> torch.Tensor:
         """Signed distance ``[B, Q]`` (negative inside) at ``queries [B, Q, 3]``."""
+        if fast_enabled():
+            per_query, per_shape = self.query_parts(ctx, queries)
+            b, q, _ = queries.shape
+            offsets = split_mlp(self.localise, per_query, per_shape, 3).reshape(b, q, self.hparams.n_offsets, 3)
+            local = self._sample_maps(ctx, queries, offsets)
+            return split_mlp(self.decoder, torch.cat([per_query, local], dim=-1), per_shape, 3).squeeze(-1)
         qctx = self.query_context(ctx, queries)
         return self.decoder(torch.cat([qctx, self.local_features(ctx, queries, qctx)], dim=-1)).squeeze(-1)
 

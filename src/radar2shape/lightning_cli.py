@@ -173,6 +173,9 @@ class Radar2ShapeCLI(LightningCLI):
             config["default_root_dir"] = DEFAULT_ROOT_DIR
         if config.get("logger") in (None, True):
             config["logger"] = default_loggers(config["default_root_dir"])
+        from radar2shape.checkpoint_io import with_atomic_checkpoint_io
+
+        config["plugins"] = with_atomic_checkpoint_io(config.get("plugins"))  # a full disk: no truncated .ckpt
         return super()._instantiate_trainer(config, [*callbacks, PreemptionCheckpoint()])
 
 

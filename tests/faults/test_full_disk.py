@@ -59,17 +59,13 @@ def test_simulate_on_a_full_disk_writes_nothing_then_equals_a_normal_run(small_d
             assert np.array_equal(got[key], want[key]), key
 
 
-PLUGIN = "trainer:\n  plugins:\n    - class_path: radar2shape.checkpoint_io.AtomicCheckpointIO\n"
-
-
 @pytest.mark.slow
 def test_checkpoint_on_a_full_disk_is_one_line_and_no_partial_checkpoint(small_disk, tmp_path):
     """Lightning's own writer copies a temp file from /tmp onto the target, leaving a truncated
-    checkpoint; the project's CheckpointIO writes beside it and renames, or reports the disk."""
-    plugin = tmp_path / "plugin.yaml"
-    plugin.write_text(PLUGIN)
+    checkpoint; the CheckpointIO the CLI adds to every trainer writes beside it and renames, or
+    reports the disk."""
     fit = ["fit", "--config", REPO / "conf/trainer/cpu.yaml", "--config", REPO / "conf/experiment/toy_sphere.yaml",
-           "--config", plugin, "--trainer.max_epochs=1"]
+           "--trainer.max_epochs=1"]
     reference = radar2shape(*fit, f"--trainer.default_root_dir={tmp_path / 'ref'}")
     assert reference.returncode == 0, reference.stderr
     (want,) = (tmp_path / "ref").rglob("*.ckpt")  # ~74 kB; config, hparams and metrics take ~16 kB

@@ -115,7 +115,10 @@ class ReconstructionModel(L.LightningModule):
                  sync_dist=stage != "train")
 
     def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
-        losses = self.losses(batch)
+        from radar2shape.nn.kernels import training_autocast
+
+        with training_autocast(self.device.type):
+            losses = self.losses(batch)
         if "loss" not in losses:
             raise UserInputError(f"{type(self).__name__} has nothing to train; run it with `radar2shape test`")
         self._log_losses("train", losses, batch)

@@ -14,6 +14,7 @@ in one pass, forward and backward, with the corner weights as ``per_sample_weigh
 from __future__ import annotations
 
 import contextlib
+import functools
 from collections.abc import Iterator
 
 import torch
@@ -72,3 +73,29 @@ def bilinear_corners(uv: torch.Tensor, resolution: int) -> tuple[torch.Tensor, t
     index = torch.stack([y0 * resolution + x0, y0 * resolution + x1, y1 * resolution + x0, y1 * resolution + x1], -1)
     weights = torch.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], -1)
     return index, weights
+
+
+_BF16_TRAINING = False
+
+
+def set_bf16_training(enabled: bool) -> None:
+    """Opt in to bfloat16 autocast of the training losses on CPU (off by default: not a refactor,
+    it changes the numerics; docs/throughput.md has its speed-up and what was checked)."""
+    global _BF16_TRAINING
+    _BF16_TRAINING = bool(enabled)
+
+
+@functools.lru_cache(maxsize=1)
+def cpu_has_bf16() -> bool:
+    """True when this CPU has native bfloat16 dot products (AVX512-BF16 or AMX), where autocast pays."""
+    try:
+        flags = open("/proc/cpuinfo").read()
+    except OSError:
+        return False
+    return " avx512_bf16" in flags or " amx_bf16" in flags
+
+
+def training_autocast(device_type: str) -> contextlib.AbstractContextManager:
+    """The autocast context of one training step: bfloat16 on a bf16-capable CPU when opted in, else none."""
+    enabled = _FAST and _BF16_TRAINING and device_type == "cpu" and cpu_has_bf16()
+    return torch.autocast("cpu", dtype=torch.bfloat16, enabled=enabled)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from radar2shape.nn.triplane import local_pool
+from radar2shape.nn.triplane import PlaneCells, local_pool
 
 
 class ResnetBlockFC(nn.Module):
@@ -44,8 +44,8 @@ class LocalPoolPointNet(nn.Module):
         self.resolution = int(resolution)
         self.blocks = nn.ModuleList([ResnetBlockFC(width)] + [ResnetBlockFC(2 * width, width) for _ in range(n_blocks - 1)])
 
-    def forward(self, features: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    def forward(self, features: torch.Tensor, index: torch.Tensor, cells: PlaneCells | None = None) -> torch.Tensor:
         net = self.blocks[0](features)
         for block in self.blocks[1:]:
-            net = block(torch.cat([net, local_pool(net, index, self.resolution)], dim=-1))
+            net = block(torch.cat([net, local_pool(net, index, self.resolution, cells)], dim=-1))
         return net

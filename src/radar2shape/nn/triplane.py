@@ -8,8 +8,12 @@ axis falls in column ``col`` and second in row ``row``; reading uses ``F.grid_sa
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 import torch.nn.functional as F
+
+from radar2shape.nn.kernels import fast_enabled
 
 PLANE_AXES = ((0, 1), (0, 2), (1, 2))  # xy, xz, yz
 PLANE_NAMES = ("xy", "xz", "yz")
@@ -38,20 +42,65 @@ def scatter_mean(features: torch.Tensor, index: torch.Tensor, n_cells: int) -> t
     return sums / counts.clamp(min=1.0)
 
 
-def project_to_planes(features: torch.Tensor, index: torch.Tensor, resolution: int) -> torch.Tensor:
+@dataclass(frozen=True)
+class PlaneCells:
+    """The cells of a point set on the three planes, flattened over (shape, plane, cell), computed once
+    per level and shared by every pooling of that level (the cell counts do not depend on features).
+
+    ``flat [3, B*N]``: row of each point's cell on each plane in a ``[B*3*R*R, C]`` table;
+    ``inv_count [3, B*N]``: 1 / points in that cell.
+    """
+
+    flat: torch.Tensor
+    inv_count: torch.Tensor
+    batch: int
+    resolution: int
+
+    @classmethod
+    def from_index(cls, index: torch.Tensor, resolution: int) -> PlaneCells:
+        b, _, n = index.shape
+        cells = resolution * resolution
+        offset = torch.arange(b * 3, device=index.device).reshape(b, 3, 1) * cells
+        flat = (index + offset).permute(1, 0, 2).reshape(3, b * n)
+        count = torch.bincount(flat.reshape(-1), minlength=b * 3 * cells)
+        return cls(flat, 1.0 / count[flat].float(), b, int(resolution))
+
+    def sums(self, features: torch.Tensor) -> torch.Tensor:
+        """Per-cell sums ``[B*3*R*R, C]`` of ``features [B, N, C]``."""
+        c = features.shape[-1]
+        flat_features = features.reshape(-1, c)
+        out = flat_features.new_zeros(self.batch * 3 * self.resolution**2, c)
+        for p in range(3):
+            out = out.index_add(0, self.flat[p], flat_features)
+        return out
+
+
+def project_to_planes(features: torch.Tensor, index: torch.Tensor, resolution: int,
+                      cells: PlaneCells | None = None) -> torch.Tensor:
     """Mean-pool point features ``[B, N, C]`` onto the planes given ``index [B, 3, N]``: ``[B, 3, C, R, R]``."""
     b, _, c = features.shape
+    if fast_enabled():
+        cells = cells or PlaneCells.from_index(index, resolution)
+        flat = cells.flat.reshape(-1)
+        count = torch.bincount(flat, minlength=b * 3 * resolution**2).clamp(min=1).to(features.dtype)
+        means = cells.sums(features) / count[:, None]
+        return means.reshape(b, 3, resolution, resolution, c).permute(0, 1, 4, 2, 3).contiguous()
     planes = [scatter_mean(features, index[:, p], resolution * resolution) for p in range(3)]
     return torch.stack(planes, dim=1).reshape(b, 3, c, resolution, resolution)
 
 
-def local_pool(features: torch.Tensor, index: torch.Tensor, resolution: int) -> torch.Tensor:
+def local_pool(features: torch.Tensor, index: torch.Tensor, resolution: int, cells: PlaneCells | None = None) -> torch.Tensor:
     """Each point gets the mean feature of its cell, summed over the three planes: ``[B, N, C]``.
 
     ConvONet's local pooling (scatter-then-gather), which lets a per-point network see its
     neighbourhood at the level's resolution without any nearest-neighbour search.
     """
     c = features.shape[-1]
+    if fast_enabled():
+        cells = cells or PlaneCells.from_index(index, resolution)
+        sums = cells.sums(features)
+        pooled = sum(sums.index_select(0, cells.flat[p]) * cells.inv_count[p, :, None] for p in range(3))
+        return pooled.reshape(features.shape)
     pooled = features.new_zeros(features.shape)
     for p in range(3):
         cells = scatter_mean(features, index[:, p], resolution * resolution)  # [B, C, R*R]

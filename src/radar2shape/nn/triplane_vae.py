@@ -31,7 +31,8 @@ from radar2shape.nn.hash_encoding import HashEncoding
 from radar2shape.nn.mlp import MLP
 from radar2shape.nn.plane_vae import PlaneDecoder, PlanePosterior
 from radar2shape.nn.point_blocks import LocalPoolPointNet
-from radar2shape.nn.triplane import plane_cell_index, project_to_planes, sample_planes
+from radar2shape.nn.kernels import fast_enabled
+from radar2shape.nn.triplane import PlaneCells, plane_cell_index, project_to_planes, sample_planes
 from radar2shape.nn.unet2d import UNet2D, depth_for_resolution
 
 
@@ -80,8 +81,9 @@ class LevelEncoder(nn.Module):
 
     def forward(self, points: torch.Tensor, hash_features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         index = plane_cell_index(points, self.resolution, self.bound)  # [B, 3, N]
-        net = self.points(self.fc_in(torch.cat([hash_features, points], dim=-1)), index)
-        planes = project_to_planes(self.fc_out(net), index, self.resolution)  # [B, 3, C, R, R]
+        cells = PlaneCells.from_index(index, self.resolution) if fast_enabled() else None
+        net = self.points(self.fc_in(torch.cat([hash_features, points], dim=-1)), index, cells)
+        planes = project_to_planes(self.fc_out(net), index, self.resolution, cells)  # [B, 3, C, R, R]
         b, _, c, r, _ = planes.shape
         planes = self.unet(planes.reshape(b * 3, c, r, r)).reshape(b, 3, c, r, r)
         return self.posterior(planes)

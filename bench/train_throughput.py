@@ -1,0 +1,149 @@
+"""Benchmark: training shapes/s per model, reference kernels against the current (fast) path, in one run.
+
+    python bench/train_throughput.py [--models stage1 stage2 tmnet list] [--threads 2] [--bf16]
+
+One step = the model's training losses, backward, the model's own optimizer (``configure_optimizers``)
+on a synthetic batch at the medium configs (batch 16, 2,048 surface + 4,096 SDF points per shape,
+radar 32 x 32 x 64): timing needs no dataset, and data loading is measured in bench/profile_steps.py.
+Both paths start from the same weights and batch; the reference path is
+``radar2shape.nn.kernels.reference_path()`` (the ops before the fused kernels, the per-parameter
+optimizer). ``--bf16`` adds the opt-in bfloat16 autocast path. Prints shapes/s by wall clock and
+per CPU-second (process time: stable on a shared machine) and the ratios; docs/throughput.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import copy
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO / "src"), str(REPO)]
+
+import torch  # noqa: E402
+import yaml  # noqa: E402
+
+from radar2shape.nn import kernels  # noqa: E402
+
+CONF = REPO / "conf/model"
+BATCH = 16
+STEPS = {"stage1": 3, "stage2": 6, "tmnet": 3, "list": 2, "profile_unet": 10, "invrt": 10}
+
+
+def _config(name: str) -> dict:
+    return yaml.safe_load((CONF / name).read_text())
+
+
+def _radar_batch(batch: int, gen: torch.Generator, num_freq: int = 64) -> dict:
+    radar = {"radar": torch.randn(batch, 32, 32, num_freq, generator=gen),
+             "radar_mask": torch.ones(batch, 32, 32, dtype=torch.bool)}
+    radius = 0.15 + 0.3 * torch.rand(batch, 1, 1, generator=gen)
+    surface = torch.nn.functional.normalize(torch.randn(batch, 2048, 3, generator=gen), dim=-1)
+    queries = torch.rand(batch, 4096, 3, generator=gen) * 1.1 - 0.55
+    return {**radar, "surface_points": surface * radius, "surface_normals": surface,
+            "sdf_points": queries, "sdf_values": queries.norm(dim=-1) - radius[..., 0], "index": torch.arange(batch)}
+
+
+def build(name: str, batch: int = BATCH) -> tuple[torch.nn.Module, dict]:
+    """A freshly initialised (seed 0) training-mode model at its medium config and a synthetic batch."""
+    from lightning.pytorch.cli import instantiate_class
+
+    torch.manual_seed(0)
+    gen = torch.Generator().manual_seed(1)
+    if name == "stage1":
+        from radar2shape.models.sdf_vae import SDFVAE
+
+        return SDFVAE(**_config("sdf_vae_medium.yaml")["init_args"]).train(), _radar_batch(batch, gen)
+    if name == "stage2":
+        from radar2shape.models.radar_diffusion import RadarDiffusion
+
+        stage2 = {k: v for k, v in _config("radar_diffusion_medium.yaml")["init_args"].items() if k != "stage1_ckpt"}
+        model = RadarDiffusion(stage1_hparams=_config("sdf_vae_medium.yaml")["init_args"], **stage2).train()
+        data = _radar_batch(batch, gen)
+        with torch.no_grad():  # training reads the latents cached at fit start
+            model._train_latents = dict(enumerate(model.stage1.encode(data["surface_points"])[0]))
+            model.standardiser.fit(torch.stack(list(model._train_latents.values())))
+        return model, data
+    if name in ("tmnet", "list"):
+        return instantiate_class((), _config(f"{name}_medium.yaml")).train(), _radar_batch(batch, gen)
+    if name in ("profile_unet", "invrt"):  # roll-symmetric: radar [B, A, F] and (r, z) profiles
+        model = instantiate_class((), _config(f"{name}_medium.yaml")).train()
+        z = torch.linspace(-0.5, 0.5, int(model.hparams.profile_points))
+        r = 0.1 + 0.3 * torch.rand(batch, 1, generator=gen) * (1 - z.square() * 3)
+        profile = torch.stack([r.clamp(min=0.02), z.expand(batch, -1)], dim=-1)
+        profile[:, 0, 0] = profile[:, -1, 0] = 0.0
+        radar = torch.randn(batch, int(model.hparams.num_aspect), int(model.hparams.num_freq), generator=gen)
+        return model, {"radar": radar, "radar_mask": torch.ones(radar.shape[:2], dtype=torch.bool), "profile": profile}
+    raise ValueError(f"unknown model {name!r}")
+
+
+def optimizer_of(model: torch.nn.Module) -> torch.optim.Optimizer:
+    """The model's own optimizer (what ``configure_optimizers`` gives under the current kernel switch)."""
+    configured = model.configure_optimizers()
+    return configured["optimizer"] if isinstance(configured, dict) else configured
+
+
+def training_step(model: torch.nn.Module, optimizer: torch.optim.Optimizer, batch: dict) -> float:
+    """One step as ``ReconstructionModel.training_step`` runs it, less Lightning's logging."""
+    with kernels.training_autocast("cpu"):
+        loss = model.losses(batch)["loss"]
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    optimizer.step()
+    return float(loss)
+
+
+def time_path(model: torch.nn.Module, batch: dict, steps: int, warmup: int = 1) -> tuple[float, float]:
+    """(wall, CPU) seconds per step on a copy of ``model`` under the current kernel switch."""
+    model = copy.deepcopy(model)
+    optimizer = optimizer_of(model)
+    for _ in range(warmup):
+        training_step(model, optimizer, batch)
+    wall, cpu = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        training_step(model, optimizer, batch)
+    return (time.perf_counter() - wall) / steps, (time.process_time() - cpu) / steps
+
+
+@contextlib.contextmanager
+def path(name: str):
+    """``reference``, ``fast`` or ``bf16`` (fast + bfloat16 autocast) for the enclosed code."""
+    with kernels.reference_path(name == "reference"):
+        kernels.set_bf16_training(name == "bf16")
+        try:
+            yield
+        finally:
+            kernels.set_bf16_training(False)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--models", nargs="+", default=["stage1", "stage2", "tmnet", "list"], choices=sorted(STEPS))
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--steps", type=int, default=0, help="timed steps per path (0: a per-model default)")
+    parser.add_argument("--bf16", action="store_true", help="also time the opt-in bfloat16 autocast path")
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    paths = ["reference", "fast"] + (["bf16"] if args.bf16 and kernels.cpu_has_bf16() else [])
+    print(f"training throughput, batch {BATCH}, medium configs, {torch.get_num_threads()} threads "
+          f"(shapes/s: wall | per CPU-second; ratio = path / reference)")
+    for name in args.models:
+        model, batch = build(name)
+        steps = args.steps or STEPS[name]
+        cells = []
+        times = {}
+        for p in paths:
+            with path(p):
+                times[p] = time_path(model, batch, steps)
+            wall, cpu = times[p]
+            cells.append(f"{p} {BATCH / wall:6.1f} | {BATCH / cpu:6.1f}")
+        ratios = [f"{p} x{times['reference'][0] / times[p][0]:.2f} wall, x{times['reference'][1] / times[p][1]:.2f} CPU"
+                  for p in paths[1:]]
+        print(f"  {name:8s} " + "   ".join(cells) + "   " + "; ".join(ratios), flush=True)
+
+
+if __name__ == "__main__":
+    main()
