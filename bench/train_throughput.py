@@ -93,7 +93,7 @@ def training_step(model: torch.nn.Module, optimizer: torch.optim.Optimizer, batc
     optimizer.zero_grad(set_to_none=True)
     loss.backward()
     optimizer.step()
-    return float(loss)
+    return float(loss.detach())
 
 
 def time_path(model: torch.nn.Module, batch: dict, steps: int, warmup: int = 1) -> tuple[float, float]:

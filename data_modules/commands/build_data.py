@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import shlex
 import sys
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from radar2shape.atomic import check_output_dir
@@ -144,6 +145,19 @@ def _command(args: argparse.Namespace) -> list[str]:
     return command + (["--quiet"] if args.quiet else [])
 
 
+@contextmanager
+def build_locks(root: Path, label: str):
+    """Every build-data lock of ``root`` (any shard) held for the block: a repair never writes beside a build."""
+    from data_modules.build import lock_name
+    from radar2shape.locking import folder_lock
+
+    names = sorted({lock_name((0, 1)), *(p.name for p in root.glob(".build-data*.lock"))})
+    with ExitStack() as stack:
+        for name in names:
+            stack.enter_context(folder_lock(root, name, "build-data", label))
+        yield
+
+
 def _verify(args: argparse.Namespace) -> int:
     """``--verify DIR [--repair --config C]``: one line per bad record, a summary, exit code 1 if any remain."""
     from data_modules.config import check_build_memory, load_build_config
@@ -163,7 +177,8 @@ def _verify(args: argparse.Namespace) -> int:
               "(the config the dataset was built with)")
         return 1
     check_build_memory(config, 1, args.memory_limit_gb)
-    written = repair_dataset(found, config)
+    with build_locks(found.root, "--repair"):
+        written = repair_dataset(found, config)
     again = verify_dataset(args.verify)
     for problem in again.problems:
         print(f"still bad: {problem.path}: {problem.reason}")

@@ -119,3 +119,17 @@ def test_skip_bad_records_substitutes_the_next_record_and_logs_the_count(damaged
     (metrics,) = (tmp_path / "runs").rglob("metrics.csv")
     rows = [row for row in csv.DictReader(metrics.open()) if row.get("train/skipped_records")]
     assert [float(row["train/skipped_records"]) for row in rows] == [1.0]
+
+
+def test_repair_refuses_while_a_build_writes_the_folder(damaged, tiny_config, capsys):
+    """A repair takes the build lock: beside a running build-data it refuses and writes nothing."""
+    from data_modules.build import lock_name
+    from radar2shape.locking import folder_lock
+
+    root, _ = damaged
+    before = files_of(root)
+    with folder_lock(root, lock_name((0, 1)), "build-data", "--out"):
+        assert main(["build-data", "--verify", str(root), "--repair", "--config", str(tiny_config)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("error: --repair: ") and "in use by build-data" in err and "\n" not in err
+        assert {k: v for k, v in files_of(root).items() if not k.endswith(".lock")} == before  # only the held lock is new
