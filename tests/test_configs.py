@@ -67,6 +67,7 @@ SETUPS = {
     "table1_lora": Setup("cpu", "shape_metrics", "parts16", before=("table1_tiny",), base="radar_diffusion_parts_cpu"),
     "rollsym_tiny": Setup("cpu", "profile_metrics", "frusta16", model="profile_unet_tiny.yaml"),
     "table1_medium": Setup("cpu", "shape_metrics", "parts64", model="sdf_vae_medium.yaml", tiny_points=True),
+    "table1_real": Setup("cpu", "shape_metrics", "parts64", model="sdf_vae_medium.yaml", tiny_points=True),
     "rollsym_medium": Setup("cpu", "profile_metrics", "frusta32x64", model="profile_unet_medium.yaml"),
     "sdf_vae_parts": Setup("gpu", "shape_metrics", "parts16", tiny_points=True),  # Stage 1 reads no radar
     "sdf_vae_frusta": Setup("gpu", "shape_metrics", "frusta16", tiny_points=True),

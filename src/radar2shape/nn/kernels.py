@@ -1,14 +1,13 @@
-"""Fused CPU kernels for the training hot spots, and the one switch between them and the reference ops.
+"""The one switch between the fast training kernels and the reference ops they replace.
 
-The reference ops (per-level ``grid_sample`` calls, a ``scatter_add`` per plane and block, dense
-``[B, N, M]`` distance graphs in the autograd tape) are kept: they are the definitions the tests
-check against, and ``reference_path()`` restores them for a speed comparison in the same process
-(``bench/train_throughput.py``). Every fused kernel computes the same function in float32 up to
-rounding; none changes a parameter, so checkpoints are unaffected. Measurements: docs/throughput.md.
-
-The fused forms rest on one observation: a bilinear/trilinear read of any set of grids is a
-weighted sum of rows of one ``[rows, C]`` table, which ``F.embedding_bag(mode="sum")`` evaluates
-in one pass, forward and backward, with the corner weights as ``per_sample_weights``.
+The fast forms live beside their reference in the module that owns the op (plane pooling in
+``nn.triplane``, nearest neighbours in ``baselines.point_losses``, LIST's query context, the fused
+optimizer in ``models.base``); each checks :func:`fast_enabled`. The reference ops are kept: they
+are the definitions the tests compare against, and :func:`reference_path` restores them for a speed
+comparison in the same process (``bench/train_throughput.py``). Every fast form computes the same
+function in float32 up to rounding and changes no parameter, so checkpoints are unaffected.
+bfloat16 autocast is separate and opt-in (:func:`set_bf16_training`): it changes the numerics.
+Measurements: docs/throughput.md.
 """
 
 from __future__ import annotations
@@ -18,7 +17,6 @@ import functools
 from collections.abc import Iterator
 
 import torch
-import torch.nn.functional as F
 
 _FAST = True
 
@@ -44,35 +42,6 @@ def reference_path(enabled: bool = True) -> Iterator[None]:
         yield
     finally:
         set_fast(previous)
-
-
-def weighted_rows(table: torch.Tensor, index: torch.Tensor, weights: torch.Tensor) -> torch.Tensor:
-    """``out[i] = sum_k weights[i, k] * table[index[i, k]]``: ``table [T, C]``, ``index, weights [M, K]`` -> ``[M, C]``.
-
-    Differentiable in ``table`` and ``weights`` (so also in the points the weights come from).
-    """
-    return F.embedding_bag(index.reshape(index.shape[0], -1), table, per_sample_weights=weights.reshape(index.shape[0], -1),
-                           mode="sum")
-
-
-def bilinear_corners(uv: torch.Tensor, resolution: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """Flat pixel indices ``[..., 4]`` (``row * R + col``) and weights ``[..., 4]`` of a bilinear read.
-
-    ``uv [..., 2]`` in ``[-1, 1]`` (x = column, y = row), the convention of ``F.grid_sample`` with
-    ``align_corners=False`` and ``padding_mode="border"``: pixel centres at cell centres, reads beyond
-    the outer centres clamped onto them.
-    """
-    pix = ((uv + 1) * resolution - 1) * 0.5
-    pix = pix.clamp(0, resolution - 1)
-    base = pix.detach().floor().clamp(max=resolution - 1)
-    frac = pix - base
-    lo = base.long()
-    hi = (lo + 1).clamp(max=resolution - 1)
-    x0, y0, x1, y1 = lo[..., 0], lo[..., 1], hi[..., 0], hi[..., 1]
-    fx, fy = frac[..., 0], frac[..., 1]
-    index = torch.stack([y0 * resolution + x0, y0 * resolution + x1, y1 * resolution + x0, y1 * resolution + x1], -1)
-    weights = torch.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], -1)
-    return index, weights
 
 
 _BF16_TRAINING = False

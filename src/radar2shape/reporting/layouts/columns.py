@@ -40,6 +40,7 @@ MODEL_TITLES = {
     "list": "LIST",
     "nearest": "Nearest neighbour",
     "mean_shape": "Mean shape",
+    "shipped": "Radar2Shape, shipped parts-only model (not trained here)",
     "radar2shape_lora": "Radar2Shape + LoRA (PO-SBR fine-tuned)",
 }
 
