@@ -249,8 +249,8 @@ def test_shipped_model_is_on_the_default_grid_and_small():
 
 def test_mirrored_constants_match_their_sources():
     """pretrained.py repeats two names so that importing it needs no torch or Lightning."""
-    from radar2shape.commands.reconstruct import RADAR_DIFFUSION as RECONSTRUCT_DEFAULT_CLASS
     from radar2shape.models.base import RADAR_SPEC_KEY
+    from radar2shape.models.radar_diffusion import RadarDiffusion
 
     assert pretrained.RADAR_SPEC_KEY == RADAR_SPEC_KEY
-    assert pretrained.RADAR_DIFFUSION == RECONSTRUCT_DEFAULT_CLASS == RADAR_DIFFUSION
+    assert pretrained.RADAR_DIFFUSION == f"{RadarDiffusion.__module__}.{RadarDiffusion.__qualname__}" == RADAR_DIFFUSION

@@ -48,10 +48,12 @@ class PlaneCells:
     per level and shared by every pooling of that level (the cell counts do not depend on features).
 
     ``flat [3, B*N]``: row of each point's cell on each plane in a ``[B*3*R*R, C]`` table;
-    ``inv_count [3, B*N]``: 1 / points in that cell.
+    ``count [B*3*R*R]``: points per cell (at least 1, so empty cells read 0);
+    ``inv_count [3, B*N]``: 1 / points in each point's cell.
     """
 
     flat: torch.Tensor
+    count: torch.Tensor
     inv_count: torch.Tensor
     batch: int
     resolution: int
@@ -62,8 +64,8 @@ class PlaneCells:
         cells = resolution * resolution
         offset = torch.arange(b * 3, device=index.device).reshape(b, 3, 1) * cells
         flat = (index + offset).permute(1, 0, 2).reshape(3, b * n)
-        count = torch.bincount(flat.reshape(-1), minlength=b * 3 * cells)
-        return cls(flat, 1.0 / count[flat].float(), b, int(resolution))
+        count = torch.bincount(flat.reshape(-1), minlength=b * 3 * cells).clamp(min=1).float()
+        return cls(flat, count, 1.0 / count[flat], b, int(resolution))
 
     def sums(self, features: torch.Tensor) -> torch.Tensor:
         """Per-cell sums ``[B*3*R*R, C]`` of ``features [B, N, C]``."""
@@ -71,7 +73,7 @@ class PlaneCells:
         flat_features = features.reshape(-1, c)
         out = flat_features.new_zeros(self.batch * 3 * self.resolution**2, c)
         for p in range(3):
-            out = out.index_add(0, self.flat[p], flat_features)
+            out.index_add_(0, self.flat[p], flat_features)
         return out
 
 
@@ -81,9 +83,7 @@ def project_to_planes(features: torch.Tensor, index: torch.Tensor, resolution: i
     b, _, c = features.shape
     if fast_enabled():
         cells = cells or PlaneCells.from_index(index, resolution)
-        flat = cells.flat.reshape(-1)
-        count = torch.bincount(flat, minlength=b * 3 * resolution**2).clamp(min=1).to(features.dtype)
-        means = cells.sums(features) / count[:, None]
+        means = cells.sums(features) / cells.count[:, None].to(features.dtype)
         return means.reshape(b, 3, resolution, resolution, c).permute(0, 1, 4, 2, 3).contiguous()
     planes = [scatter_mean(features, index[:, p], resolution * resolution) for p in range(3)]
     return torch.stack(planes, dim=1).reshape(b, 3, c, resolution, resolution)
@@ -99,7 +99,7 @@ def local_pool(features: torch.Tensor, index: torch.Tensor, resolution: int, cel
     if fast_enabled():
         cells = cells or PlaneCells.from_index(index, resolution)
         sums = cells.sums(features)
-        pooled = sum(sums.index_select(0, cells.flat[p]) * cells.inv_count[p, :, None] for p in range(3))
+        pooled = sum(sums.index_select(0, cells.flat[p]) * cells.inv_count[p, :, None].to(sums.dtype) for p in range(3))
         return pooled.reshape(features.shape)
     pooled = features.new_zeros(features.shape)
     for p in range(3):
