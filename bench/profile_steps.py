@@ -1,6 +1,6 @@
 """Profile: where a training step's CPU time goes, per model, as one markdown table.
 
-    python bench/profile_steps.py [--paths reference fast] [--models ...] [--threads 2] [--steps 2]
+    python bench/profile_steps.py [--paths reference fast] [--models ...] [--threads 1] [--steps 2]
 
 Per model at its medium config (synthetic batch of bench/train_throughput.py): CPU seconds per
 step split into forward (losses), backward and optimizer (zero_grad + step) by process-time
@@ -9,6 +9,8 @@ timers; then one step under ``torch.profiler``: the three operators with the mos
 outside operators (autograd engine, optimizer and Python glue: the per-op overhead).
 Data loading is a separate line: the ShapeDataModule train loader in this process on
 ``data/parts_tiny`` records at the medium point counts (skipped without that folder).
+One thread by default: with two OpenMP threads on oversubscribed cores the threads' spin-waiting
+lands in whichever operator is running and the split says more about the load than the model.
 docs/throughput.md holds the table this printed.
 """
 
@@ -89,7 +91,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--paths", nargs="+", default=["fast"], choices=["reference", "fast", "bf16"])
     parser.add_argument("--models", nargs="+", default=MODELS, choices=MODELS)
-    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--steps", type=int, default=2)
     parser.add_argument("--no-data", action="store_true", help="skip the data-loading line")
     args = parser.parse_args()

@@ -6,9 +6,11 @@ One step = the model's training losses, backward, the model's own optimizer (``c
 on a synthetic batch at the medium configs (batch 16, 2,048 surface + 4,096 SDF points per shape,
 radar 32 x 32 x 64): timing needs no dataset, and data loading is measured in bench/profile_steps.py.
 Both paths start from the same weights and batch; the reference path is
-``radar2shape.nn.kernels.reference_path()`` (the ops before the fused kernels, the per-parameter
-optimizer). ``--bf16`` adds the opt-in bfloat16 autocast path. Prints shapes/s by wall clock and
-per CPU-second (process time: stable on a shared machine) and the ratios; docs/throughput.md.
+``radar2shape.nn.kernels.reference_path()`` (the ops before the fast forms, the per-parameter
+optimizer). ``--bf16`` adds the opt-in bfloat16 autocast path. The paths take turns for
+``--rounds`` rounds and each keeps its best round: on a shared, oversubscribed machine a round's
+time depends on what else ran then far more than on the path. Prints shapes/s by wall clock and
+per CPU-second (process time) and the ratios; docs/throughput.md.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from radar2shape.nn import kernels  # noqa: E402
 
 CONF = REPO / "conf/model"
 BATCH = 16
-STEPS = {"stage1": 3, "stage2": 6, "tmnet": 3, "list": 2, "profile_unet": 10, "invrt": 10}
+STEPS = {"stage1": 1, "stage2": 3, "tmnet": 1, "list": 1, "profile_unet": 5, "invrt": 5}
 
 
 def _config(name: str) -> dict:
@@ -96,16 +98,22 @@ def training_step(model: torch.nn.Module, optimizer: torch.optim.Optimizer, batc
     return float(loss.detach())
 
 
-def time_path(model: torch.nn.Module, batch: dict, steps: int, warmup: int = 1) -> tuple[float, float]:
-    """(wall, CPU) seconds per step on a copy of ``model`` under the current kernel switch."""
-    model = copy.deepcopy(model)
-    optimizer = optimizer_of(model)
-    for _ in range(warmup):
-        training_step(model, optimizer, batch)
-    wall, cpu = time.perf_counter(), time.process_time()
-    for _ in range(steps):
-        training_step(model, optimizer, batch)
-    return (time.perf_counter() - wall) / steps, (time.process_time() - cpu) / steps
+class Runner:
+    """A copy of ``model`` with its own optimizer under one path, warmed up by one step."""
+
+    def __init__(self, model: torch.nn.Module, batch: dict, name: str) -> None:
+        self.model, self.batch, self.name = copy.deepcopy(model), batch, name
+        with path(name):
+            self.optimizer = optimizer_of(self.model)
+            training_step(self.model, self.optimizer, batch)
+
+    def time(self, steps: int) -> tuple[float, float]:
+        """(wall, CPU) seconds per step over ``steps`` steps."""
+        with path(self.name):
+            wall, cpu = time.perf_counter(), time.process_time()
+            for _ in range(steps):
+                training_step(self.model, self.optimizer, self.batch)
+            return (time.perf_counter() - wall) / steps, (time.process_time() - cpu) / steps
 
 
 @contextlib.contextmanager
@@ -124,20 +132,21 @@ def main() -> None:
     parser.add_argument("--models", nargs="+", default=["stage1", "stage2", "tmnet", "list"], choices=sorted(STEPS))
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--steps", type=int, default=0, help="timed steps per path (0: a per-model default)")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds in which the paths take turns")
     parser.add_argument("--bf16", action="store_true", help="also time the opt-in bfloat16 autocast path")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     paths = ["reference", "fast"] + (["bf16"] if args.bf16 and kernels.cpu_has_bf16() else [])
-    print(f"training throughput, batch {BATCH}, medium configs, {torch.get_num_threads()} threads "
-          f"(shapes/s: wall | per CPU-second; ratio = path / reference)")
+    print(f"training throughput, batch {BATCH}, medium configs, {torch.get_num_threads()} threads, best of "
+          f"{args.rounds} rounds (shapes/s: wall | per CPU-second; ratio = path / reference)")
     for name in args.models:
         model, batch = build(name)
         steps = args.steps or STEPS[name]
+        runners = [Runner(model, batch, p) for p in paths]
+        rounds = [[r.time(steps) for r in runners] for _ in range(args.rounds)]
+        times = {p: tuple(min(rnd[i][k] for rnd in rounds) for k in (0, 1)) for i, p in enumerate(paths)}
         cells = []
-        times = {}
         for p in paths:
-            with path(p):
-                times[p] = time_path(model, batch, steps)
             wall, cpu = times[p]
             cells.append(f"{p} {BATCH / wall:6.1f} | {BATCH / cpu:6.1f}")
         ratios = [f"{p} x{times['reference'][0] / times[p][0]:.2f} wall, x{times['reference'][1] / times[p][1]:.2f} CPU"

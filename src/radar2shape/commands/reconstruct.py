@@ -288,6 +288,8 @@ def main(args: argparse.Namespace) -> int:
         detail += (f", {args.samples or model.hparams.num_samples} sample(s); SDF spread over samples mean "
                    f"{spread.mean():.4f}, max {spread.max():.4f}")
     print(f"wrote {args.out}: {detail}")
+    print("frame: the body frame of the radar (z up: aspect from +z, roll about z from +x), normalised to the "
+          "unit cube (longest side 1, centred); scale by the object's size to compare with a mesh in metres")
     for path in written[1:]:
         print(f"wrote {path}")
     return 0
