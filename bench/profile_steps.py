@@ -52,7 +52,8 @@ def phases(model: torch.nn.Module, batch: dict, steps: int) -> tuple[dict[str, f
             for key, seconds in zip(totals, (t1 - t0, t2 - t1, t3 - t2)):
                 totals[key] += seconds / steps
 
-    step(False)
+    for _ in range(2):  # two warm-up steps: with one, the first model measured still paid one-time costs
+        step(False)
     for _ in range(steps):
         step(True)
     with profile(activities=[ProfilerActivity.CPU]) as prof:
@@ -98,7 +99,8 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     print(f"{torch.get_num_threads()} threads, OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', '(default)')}, "
           f"batch {BATCH}, medium configs")
-    print("| model | path | CPU s/step | forward | backward | optimizer | top operators (self CPU) | op calls | outside ops |")
+    print("| model | path | CPU s/step | forward | backward | optimizer | top operators (self CPU) | op calls "
+          "| outside ops |")
     print("|---|---|---|---|---|---|---|---|---|")
     for name in args.models:
         model, batch = build(name)

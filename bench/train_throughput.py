@@ -32,7 +32,7 @@ from radar2shape.nn import kernels  # noqa: E402
 
 CONF = REPO / "conf/model"
 BATCH = 16
-STEPS = {"stage1": 1, "stage2": 3, "tmnet": 1, "list": 1, "profile_unet": 5, "invrt": 5}
+STEPS = {"stage1": 1, "stage2": 2, "tmnet": 1, "list": 1, "profile_unet": 5, "invrt": 5}
 
 
 def _config(name: str) -> dict:
@@ -132,7 +132,7 @@ def main() -> None:
     parser.add_argument("--models", nargs="+", default=["stage1", "stage2", "tmnet", "list"], choices=sorted(STEPS))
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--steps", type=int, default=0, help="timed steps per path (0: a per-model default)")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds in which the paths take turns")
+    parser.add_argument("--rounds", type=int, default=2, help="rounds in which the paths take turns")
     parser.add_argument("--bf16", action="store_true", help="also time the opt-in bfloat16 autocast path")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)

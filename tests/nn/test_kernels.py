@@ -88,7 +88,8 @@ def test_list_sdf_matches_the_reference_context():
 
 def sdf_vae_batch() -> dict:
     queries = torch.rand(2, 256, 3) - 0.5
-    return {"surface_points": torch.rand(2, 400, 3) - 0.5, "sdf_points": queries, "sdf_values": queries.norm(dim=-1) - 0.3}
+    surface = torch.rand(2, 400, 3) - 0.5
+    return {"surface_points": surface, "sdf_points": queries, "sdf_values": queries.norm(dim=-1) - 0.3}
 
 
 def test_sdf_vae_loss_and_gradients_match_the_reference():

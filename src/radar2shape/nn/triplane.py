@@ -89,7 +89,8 @@ def project_to_planes(features: torch.Tensor, index: torch.Tensor, resolution: i
     return torch.stack(planes, dim=1).reshape(b, 3, c, resolution, resolution)
 
 
-def local_pool(features: torch.Tensor, index: torch.Tensor, resolution: int, cells: PlaneCells | None = None) -> torch.Tensor:
+def local_pool(features: torch.Tensor, index: torch.Tensor, resolution: int,
+               cells: PlaneCells | None = None) -> torch.Tensor:
     """Each point gets the mean feature of its cell, summed over the three planes: ``[B, N, C]``.
 
     ConvONet's local pooling (scatter-then-gather), which lets a per-point network see its
