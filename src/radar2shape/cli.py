@@ -149,6 +149,23 @@ def describe_error(err: BaseException) -> str:
     return " ".join(text.split())
 
 
+def as_disk_full(err: Exception) -> Exception:
+    """A no-space error from a writer that does not go through :mod:`radar2shape.atomic` (a report's
+    tables, Lightning's logs) as the same one line: the file and the space left. Else ``err``."""
+    from radar2shape.atomic import disk_full, is_disk_full
+    from radar2shape.errors import DiskFullError
+
+    if isinstance(err, DiskFullError) or not is_disk_full(err):
+        return err
+    seen, cause = set(), err
+    while cause is not None and id(cause) not in seen:
+        seen.add(id(cause))
+        if isinstance(cause, OSError) and cause.filename:
+            return disk_full(cause.filename)
+        cause = cause.__cause__ or cause.__context__
+    return err
+
+
 def main(args: list[str] | None = None) -> int:
     """Entry point; ``args`` defaults to ``sys.argv[1:]``. Returns the exit code.
 
@@ -178,6 +195,7 @@ def main(args: list[str] | None = None) -> int:
     except Exception as err:  # noqa: BLE001 - the one place errors become messages
         if debug or _raise_errors:
             raise
+        err = as_disk_full(err)
         known = known_error(err)
         if known is not None:
             # a tool's own message already starts with the option or file it is about

@@ -85,3 +85,55 @@ def test_checkpoint_on_a_full_disk_is_one_line_and_no_partial_checkpoint(small_d
     want_state = torch.load(want, weights_only=True)["state_dict"]
     assert got_state.keys() == want_state.keys()
     assert all(torch.equal(got_state[k], want_state[k]) for k in want_state)
+
+
+def test_report_on_a_full_disk_is_one_line_and_leaves_no_file(small_disk, tmp_path):
+    """A report writes its tables without the atomic writer (into a staging folder moved into place at
+    the end); a full disk is still one line naming the file and the space left, nothing stays, and the
+    rerun after space is freed writes the same report as on a normal disk."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "tests"))
+    from test_report import finished_run
+
+    import yaml
+
+    runs = tmp_path / "runs"
+    for name, iou in (("radar2shape-full", 0.5), ("nearest-full", 0.6)):
+        finished_run(runs / name, 3.0, iou, 0.3, saved=())
+    grid = tmp_path / "g.yaml"
+    grid.write_text(yaml.safe_dump({"out_dir": str(runs), "runs": [{"name": "radar2shape-full"}, {"name": "nearest-full"}]}))
+    reference = radar2shape("report", "--grid", grid, "--out", tmp_path / "ref")
+    assert reference.returncode == 0, reference.stderr
+    out = small_disk / "report"
+    filler = fill(small_disk, 2_000)
+    failed = radar2shape("report", "--grid", grid, "--out", out)
+    assert failed.returncode == 2
+    line = one_error_line(failed, tool=False)
+    assert line.startswith(f"error: {out}: no space left on device (") and "free on its file system" in line, line
+    assert not out.exists() and leftovers(small_disk) == []
+    filler.unlink()
+    again = radar2shape("report", "--grid", grid, "--out", out)
+    assert again.returncode == 0, again.stderr
+    assert files_of(out) == files_of(tmp_path / "ref")
+
+
+def test_a_foreign_writers_no_space_error_becomes_the_one_line(tmp_path):
+    """Writers outside radar2shape.atomic (Lightning's logs) raise a bare OSError: the CLI names its file."""
+    import errno
+
+    from radar2shape.cli import as_disk_full
+    from radar2shape.errors import DiskFullError
+
+    target = tmp_path / "runs" / "metrics.csv"
+    try:
+        try:
+            raise OSError(errno.ENOSPC, "No space left on device", str(target))
+        except OSError as inner:
+            raise RuntimeError("logger failed") from inner
+    except RuntimeError as err:
+        converted = as_disk_full(err)
+    assert isinstance(converted, DiskFullError)
+    assert str(converted).startswith(f"{target}: no space left on device (") and "free on its file system" in str(converted)
+    other = ValueError("not a disk problem")
+    assert as_disk_full(other) is other

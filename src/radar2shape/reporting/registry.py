@@ -52,11 +52,15 @@ def write_report(grid, out: str | Path | None = None, layout: str | None = None,
             target.parent.mkdir(parents=True, exist_ok=True)
             path.replace(target)
         return out / main.relative_to(staging)
-    except BaseException:
+    except BaseException as err:
         shutil.rmtree(staging, ignore_errors=True)
         for folder in created:  # deepest first; only the folders this call made, once empty again
             with contextlib.suppress(OSError):
                 folder.rmdir()
+        from radar2shape.atomic import disk_full, is_disk_full
+
+        if isinstance(err, Exception) and is_disk_full(err):
+            raise disk_full(out) from err  # a table or figure write found no space: name the report folder
         raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)
