@@ -48,7 +48,13 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     add("--occ-points", type=int, default=100_000, help="uniform occupancy points for IoU (default 100000)")
     add("--tau", type=float, help="F-score threshold (default 0.01 = 1%% of the unit cube)")
     add("--seed", type=int, default=0, help="seed of all sampling (default 0)")
-    add("--normalise", action="store_true", help="map both shapes by the ground truth's normalisation first")
+    frame = parser.add_mutually_exclusive_group()
+    frame.add_argument("--normalise", action="store_true", help="map both shapes by the ground truth's normalisation first")
+    frame.add_argument("--normalise-gt", action="store_true",
+                       help="map only the ground truth into the normalised frame (centred, longest side 1), the frame "
+                       "'reconstruct' writes in: score a reconstruction against the mesh it was simulated from")
+    add("--up", default="z", choices=["x", "y", "z", "-x", "-y", "-z"],
+        help="the ground truth's up axis, turned onto +z first (as 'simulate --up'; default z)")
     add("--json", action="store_true", help="print one line of JSON instead of a table")
     add_memory_option(parser)
     parser.epilog = ("Bad input is one 'error:' line (exit code 2). A prediction more than 10x larger or "
@@ -74,7 +80,8 @@ def main(args: argparse.Namespace) -> int:
         check_memory(points_bytes + sum(mesh_bytes(n) for n in faces.values()),
                      " and ".join(f"{path} ({n} faces)" for path, n in faces.items()) + f" scored with --points "
                      f"{args.points} and --occ-points {args.occ_points}", args.memory_limit_gb)
-    scores = evaluate_files(args.pred, args.gt, args.points, args.occ_points, args.tau, args.seed, args.normalise)
+    scores = evaluate_files(args.pred, args.gt, args.points, args.occ_points, args.tau, args.seed, args.normalise,
+                            args.normalise_gt, args.up)
     if args.json:
         print(json.dumps({k: (None if math.isnan(v) else v) for k, v in scores.items()}))
     else:
@@ -90,10 +97,14 @@ def evaluate_files(
     tau: float | None = None,
     seed: int = 0,
     normalise: bool = False,
+    normalise_gt: bool = False,
+    up: str = "z",
 ) -> dict[str, float]:
     """Scores of the prediction file against the ground-truth file (see ``score_reconstruction``).
 
-    ``tau`` defaults to the shared F-score threshold (``metrics.functional.FSCORE_TAU``).
+    ``tau`` defaults to the shared F-score threshold (``metrics.functional.FSCORE_TAU``). ``up``
+    turns the ground truth into the body frame first; ``normalise`` maps both shapes by the ground
+    truth's normalisation, ``normalise_gt`` only the ground truth (a reconstruction is already there).
     """
     from radar2shape.geometry.mesh_io import load_mesh
     from radar2shape.geometry.normalise import normalisation
@@ -104,6 +115,12 @@ def evaluate_files(
 
     tau = FSCORE_TAU if tau is None else tau
     gt = load_mesh(gt_path)
+    if up != "z":
+        from radar2shape.geometry.frames import to_body_frame
+
+        gt = to_body_frame(gt, up)
+    if normalise_gt:
+        gt = _transformed(gt, *normalisation(gt.vertices))
     pred = load_prediction(pred_path)
     warn_scale(pred, gt, pred_path, gt_path, normalise)
     if normalise:
