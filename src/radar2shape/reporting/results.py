@@ -178,6 +178,22 @@ def _fit_minutes(root: Path) -> float:
     return sum(json.loads((scores / f"{run}.json").read_text())["record"]["fit_seconds"] for run in runs) / 60
 
 
+def _real_targets_line(root: Path) -> str:
+    """What the card says of real objects, from the real-target report's per-shape scores when it exists."""
+    path = root / TABLE1_REAL / "scores" / "shipped-full.csv"
+    if not path.is_file():
+        return ""
+    with path.open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    iou = sum(float(r["iou"]) for r in rows) / len(rows)
+    dependence = sum(float(r["radar_dependence_iou"]) for r in rows) / len(rows)
+    ceiling = sum(float(r["ceiling_iou"]) for r in rows) / len(rows)
+    return (f" On the {len(rows)} real test objects of `make data-real` (aircraft, ships, vehicles, buildings) "
+            f"it scores IoU {iou:.3f}, with a radar dependence of {dependence:+.3f} (it hardly reads their "
+            f"radar) and a Stage-1 ceiling of {ceiling:.3f} ([report]({_link(TABLE1_REAL / 'table1-real.md')}); "
+            f"turned test aircraft: [yaw_check_shipped.md]({_link(Path('reports/real/yaw_check_shipped.md'))})).")
+
+
 def model_card(root: Path, checkpoint: Path) -> str:
     import numpy as np
 
@@ -229,7 +245,8 @@ def model_card(root: Path, checkpoint: Path) -> str:
         score_line("full", full), score_line("partial (70 % of the cells masked)", partial), "",
         "`make demo` scores it again on 20 shapes of another seed, beside a lookup in 1,000 shapes (reports/demo/).", "",
         "## What it does not know",
-        "- Objects outside the ten classes: other objects come back as the nearest thing it knows.",
+        "- Objects outside the ten classes: other objects come back as the nearest thing it knows."
+        + _real_targets_line(root),
         "- Other poses: it has only seen objects lined up with the frame; a turned object (a yaw that is not "
         "the family's) or a mesh in another up-axis convention is reconstructed in the wrong place. Put the "
         "object's up axis on +z before simulating.",
