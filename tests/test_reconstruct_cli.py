@@ -76,7 +76,18 @@ def test_valid_file_runs_end_to_end(checkpoint, tmp_path, capsys):
     assert run(checkpoint, str(radar), out, "--samples", "2", "--steps", "5", "--png", str(png),
                "--spread", str(spread)) == 0
     assert out.stat().st_size > 0 and png.stat().st_size > 0
-    assert "vertices" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "vertices" in printed
+    # The printed confidence is the residual of the written mesh against the input (recomputed here).
+    import trimesh
+
+    from radar2shape.commands.reconstruct import load_model
+    from radar2shape.metrics.consistency import radar_consistency
+
+    spec = load_model(checkpoint).radar_spec
+    db = spec.to_db(np.ones((4, 8, 8), np.complex64) * 0.1)
+    expected = radar_consistency(trimesh.load(out, process=False), db, np.ones((4, 8), bool), spec)
+    assert f"radar consistency: {expected:.3f} " in printed and 0 <= expected <= 1
     assert np.load(spread).ndim == 1 and len(np.load(spread)) > 0
 
 

@@ -288,6 +288,12 @@ def main(args: argparse.Namespace) -> int:
         detail += (f", {args.samples or model.hparams.num_samples} sample(s); SDF spread over samples mean "
                    f"{spread.mean():.4f}, max {spread.max():.4f}")
     print(f"wrote {args.out}: {detail}")
+    if not profile:
+        from radar2shape.metrics.consistency import radar_consistency
+
+        residual = radar_consistency(mesh, grid.db, grid.mask, spec)
+        print(f"radar consistency: {residual:.3f} (the reconstruction's PO radar against the input over the observed "
+              "cells, relative residual in power after one gain: 0 = explains it, 1 = not at all; docs/metrics.md)")
     print("frame: the body frame of the radar (z up: aspect from +z, roll about z from +x), normalised to the "
           "unit cube (longest side 1, centred); scale by the object's size to compare with a mesh in metres")
     for path in written[1:]:
