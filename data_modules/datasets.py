@@ -115,13 +115,15 @@ class RecordDataset(Dataset):
         """``record`` turned by a random whole number of roll steps and maybe mirrored (exact).
 
         The draw has its own generator, so the mask, noise and point subsets of the item are the
-        ones it would have without the augmentation.
+        ones it would have without the augmentation. The item carries the turn as ``roll_turn``
+        (``shift + R * mirror``), so a model caching per-record quantities knows they do not apply.
         """
         from data_modules.augment import turn_and_mirror
 
         roll = self.transform.spec.grid.roll_rad
         draw = np.random.default_rng([self.seed, _SPLIT_CODES.get(self.records.split, 3), epoch, index, AUGMENT_STREAM])
-        return turn_and_mirror(record, int(draw.integers(len(roll))), bool(draw.integers(2)), roll_rad=roll)
+        shift, mirror = int(draw.integers(len(roll))), bool(draw.integers(2))
+        return {**turn_and_mirror(record, shift, mirror, roll_rad=roll), "roll_turn": np.int64(shift + len(roll) * mirror)}
 
     def __len__(self) -> int:
         return len(self.records)
@@ -176,6 +178,8 @@ class RecordDataset(Dataset):
             item["occ_points"] = item["occ_points"].astype(np.float32)
         for extra in self.extra_keys():
             item[extra] = record[extra]
+        if "roll_turn" in record:
+            item["roll_turn"] = record["roll_turn"]
         return {k: torch.from_numpy(np.ascontiguousarray(v)) if isinstance(v, np.ndarray) else torch.tensor(v)
                 for k, v in item.items()}
 

@@ -227,33 +227,31 @@ def test_cached_records_give_the_same_items_and_read_each_file_once(parts_datase
 
 
 def test_roll_augment_turns_radar_and_points_together_exactly(parts_dataset):
-    """An augmented train item is the plain item turned by whole roll steps (maybe mirrored): the radar
-    re-indexed along roll, the points rotated by the matching angle; val/test items are never turned."""
+    """An augmented train item is the plain item turned by the whole roll steps it names (``roll_turn``
+    = shift + R * mirror): the radar re-indexed along roll, the points rotated by the matching angle,
+    SDF values unchanged; val/test items are never turned."""
     plain = _module(parts_dataset, observability="full").dataset("train")
     turned = _module(parts_dataset, observability="full", roll_augment=True).dataset("train")
-    roll = plain.transform.spec.grid.roll_rad
-    count, step = len(roll), 2 * np.pi / len(roll)
+    count = len(plain.transform.spec.grid.roll_rad)
+    step = 2 * np.pi / count
     seen = set()
     for epoch, index in [(e, i) for e in range(3) for i in range(len(plain))]:
         a, b = plain[(epoch, index)], turned[(epoch, index)]
-        # Find the turn from the points: the rotation that maps a's surface points onto b's.
-        matched = None
-        for mirror in (False, True):
-            pts = a["surface_points"].double().numpy() * (np.array([1.0, -1.0, 1.0]) if mirror else 1.0)
-            for shift in range(count):
-                c, s = np.cos(shift * step), np.sin(shift * step)
-                rotated = pts @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T
-                if np.allclose(rotated, b["surface_points"].double().numpy(), atol=1e-5):
-                    matched = (shift, mirror)
-        assert matched is not None, (epoch, index)
-        shift, mirror = matched
+        assert "roll_turn" not in a
+        shift, mirror = int(b["roll_turn"]) % count, bool(int(b["roll_turn"]) // count)
+        c, s = np.cos(shift * step), np.sin(shift * step)
+        rotation = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ np.diag([1.0, -1.0 if mirror else 1.0, 1.0])
+        for key in ("surface_points", "surface_normals", "sdf_points"):
+            np.testing.assert_allclose(b[key].double().numpy(), a[key].double().numpy() @ rotation.T, atol=1e-5)
         order = np.roll((-np.arange(count)) % count if mirror else np.arange(count), shift)
         torch.testing.assert_close(b["radar"], a["radar"][:, order], rtol=0, atol=0)
         torch.testing.assert_close(b["sdf_values"], a["sdf_values"], rtol=0, atol=0)
-        seen.add(matched)
+        seen.add((shift, mirror))
     assert len(seen) > 5  # the draw varies over items and epochs
     val = _module(parts_dataset, observability="full", roll_augment=True).dataset("val")
-    torch.testing.assert_close(val[(0, 0)]["surface_points"], _module(parts_dataset).dataset("val")[(0, 0)]["surface_points"])
+    item = val[(0, 0)]
+    assert "roll_turn" not in item
+    torch.testing.assert_close(item["surface_points"], _module(parts_dataset).dataset("val")[(0, 0)]["surface_points"])
 
 
 def test_roll_augment_is_refused_for_roll_symmetric_data(frusta_dataset):

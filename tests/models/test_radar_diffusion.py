@@ -324,3 +324,14 @@ def test_ema_decay_out_of_range_is_refused(stage1_ckpt, tmp_path):
     batch = fit_batch()
     with pytest.raises(UserInputError, match="ema_decay must be in"):
         fit(tiny_model(stage1_ckpt, ema_decay=1.0), RadarStub(batch, GRID), 1, tmp_path)
+
+
+def test_latent_cache_is_not_used_for_turned_samples(stage1_ckpt):
+    """With roll augmentation a batch names its turn (``roll_turn``): the per-record cache holds each
+    record in one pose, so turned samples are encoded afresh (else radar and latents disagree)."""
+    model = tiny_model(stage1_ckpt).train()
+    batch = {**radar_batch(2), "surface_points": sphere_batch()["surface_points"][:1].expand(2, -1, -1)}
+    fresh = model.stage1.encode(batch["surface_points"])[0]
+    model._train_latents = {0: torch.zeros_like(fresh[0]), 1: torch.zeros_like(fresh[0])}
+    assert model.encode_shapes(batch).abs().max() == 0  # unturned: the cache
+    torch.testing.assert_close(model.encode_shapes({**batch, "roll_turn": torch.tensor([3, 9])}), fresh)

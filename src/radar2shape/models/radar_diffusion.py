@@ -213,9 +213,14 @@ class RadarDiffusion(ReconstructionModel):
     # ---- latents -----------------------------------------------------------------------------
     @torch.no_grad()
     def encode_shapes(self, batch: dict) -> torch.Tensor:
-        """Stage-1 posterior means ``[B, L, Z]``: from the training cache when every index is in it."""
+        """Stage-1 posterior means ``[B, L, Z]``: from the training cache when every index is in it.
+
+        Not for a batch of turned samples (``roll_turn``, the DataModule's ``roll_augment``): the cache
+        holds each record's latents in one pose, and pairing them with turned radar would teach the
+        model that the radar says nothing about the shape.
+        """
         index = batch.get("index")
-        if self.training and index is not None and self._train_latents:
+        if self.training and index is not None and self._train_latents and "roll_turn" not in batch:
             rows = [self._train_latents.get(int(i)) for i in index]
             if all(r is not None for r in rows):
                 return torch.stack(rows).to(self.device)
