@@ -121,16 +121,19 @@ class RecordDataset(Dataset):
         from data_modules.augment import turn_and_mirror
 
         roll = self.transform.spec.grid.roll_rad
-        draw = np.random.default_rng([self.seed, _SPLIT_CODES.get(self.records.split, 3), epoch, index, AUGMENT_STREAM])
+        draw = np.random.default_rng([*self.seed_words(epoch, index), AUGMENT_STREAM])
         shift, mirror = int(draw.integers(len(roll))), bool(draw.integers(2))
         return {**turn_and_mirror(record, shift, mirror, roll_rad=roll), "roll_turn": np.int64(shift + len(roll) * mirror)}
 
     def __len__(self) -> int:
         return len(self.records)
 
+    def seed_words(self, epoch: int, index: int) -> list[int]:
+        """What an item's randomness is a function of: seed, split, epoch (training only), index."""
+        return [self.seed, _SPLIT_CODES.get(self.records.split, 3), epoch if self.train else 0, index]
+
     def rng(self, epoch: int, index: int) -> np.random.Generator:
-        split = _SPLIT_CODES.get(self.records.split, 3)
-        return np.random.default_rng([self.seed, split, epoch if self.train else 0, index])
+        return np.random.default_rng(self.seed_words(epoch, index))
 
     def _subset(self, size: int, n: int, rng: np.random.Generator) -> slice | np.ndarray:
         if n < 0:

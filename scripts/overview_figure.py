@@ -48,11 +48,12 @@ def main(argv=None) -> int:
 
     from data_modules.datamodules import ShapeDataModule
     from radar2shape.atomic import atomic_path
+    from radar2shape.commands.reconstruct import model_batch
     from radar2shape.geometry.query import sample_surface
     from radar2shape.metrics.render import depth_image
     from radar2shape.metrics.scoring import score_reconstruction
     from radar2shape.pretrained import default_checkpoint, load_model
-    from radar2shape.radar import to_db
+    from radar2shape.radar.measured import GridInput
 
     torch.set_num_threads(2)
     model = load_model(default_checkpoint())
@@ -65,8 +66,7 @@ def main(argv=None) -> int:
     for row, index in enumerate(picked):
         record = records[index]
         db = spec.to_db(record["radar"])
-        batch = {"radar": torch.from_numpy(spec.normalise(db))[None],
-                 "radar_mask": torch.ones(db.shape[:2], dtype=torch.bool)[None], "index": torch.tensor([index])}
+        batch = model_batch(spec, GridInput(db, np.ones(db.shape[:2], bool), np.ones(db.shape[2], bool), 1.0))
         recon = model.reconstruct(batch)[0]
         score = score_reconstruction(recon, record["eval_points"], record["occ_points"], record["occ_inside"])
         truth = record["eval_points"]

@@ -47,8 +47,10 @@ def turned(mesh, yaw_deg: float):
 
 
 def score_turn(model, record, yaw_deg: float) -> dict[str, float]:
-    import torch
     import trimesh
+
+    from radar2shape.commands.reconstruct import model_batch
+    from radar2shape.radar.measured import GridInput
 
     from radar2shape.metrics.functional import occupancy_points
     from radar2shape.geometry.query import contains, sample_surface
@@ -59,8 +61,7 @@ def score_turn(model, record, yaw_deg: float) -> dict[str, float]:
     mesh = turned(trimesh.Trimesh(record["vertices"], record["faces"], process=False), yaw_deg)
     response = simulate(mesh, spec.grid.aspect_rad, spec.grid.roll_rad, spec.grid.freq_hz)
     db = spec.to_db(response)
-    batch = {"radar": torch.from_numpy(spec.normalise(db))[None],
-             "radar_mask": torch.ones(db.shape[:2], dtype=torch.bool)[None], "index": torch.tensor([0])}
+    batch = model_batch(spec, GridInput(db, np.ones(db.shape[:2], bool), np.ones(db.shape[2], bool), 1.0))
     recon = model.reconstruct(batch)[0]
     gt_points, _ = sample_surface(mesh, 30_000, 1)
     occ = occupancy_points(100_000, 2, [mesh.bounds])

@@ -15,6 +15,7 @@ import math
 import sys
 from pathlib import Path
 
+from radar2shape.reporting.cells import pooled, read_scores
 from radar2shape.reporting.tables import Column, markdown_table
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
@@ -56,13 +57,20 @@ SHAPE_METRICS = [("chamfer_l2_x1e3", "CD x10^3 ↓", False, 2, "std"), ("iou", "
 OBSERVABILITY = {"full": "full", "partial": "partial"}
 
 
-def table1_medium(root: Path) -> str:
-    folder = root / TABLE1_MEDIUM
-    rows = join_rows(read_table(folder / "table1-medium.csv"), read_table(folder / "table1-medium_diagnostics.csv"))
+DIAGNOSTICS = [("radar_dependence_iou", "radar dependence Δ IoU ↑", True, 3, "se"),
+               ("ceiling_iou", "Stage-1 ceiling IoU", True, 3, "std")]
+
+
+def table1_tables(folder: Path) -> tuple[str, str]:
+    """A Table-1 report's main table and its diagnostics of the learned rows, from its two CSVs."""
+    rows = join_rows(read_table(folder / f"{folder.name}.csv"), read_table(folder / f"{folder.name}_diagnostics.csv"))
     main = markdown_table(rows, columns(OBSERVABILITY, SHAPE_METRICS))
-    diag = markdown_table([(t, m) for t, m in rows if not math.isnan(m.get("full/radar_dependence_iou_mean", math.nan))],
-                          columns(OBSERVABILITY, [("radar_dependence_iou", "radar dependence Δ IoU ↑", True, 3, "se"),
-                                                  ("ceiling_iou", "Stage-1 ceiling IoU", True, 3, "std")]))
+    learned = [(t, m) for t, m in rows if not math.isnan(m.get("full/radar_dependence_iou_mean", math.nan))]
+    return main, markdown_table(learned, columns(OBSERVABILITY, DIAGNOSTICS))
+
+
+def table1_medium(root: Path) -> str:
+    main, diag = table1_tables(root / TABLE1_MEDIUM)
     return "\n".join([
         f"## Table 1 at medium scale ([report]({_link(TABLE1_MEDIUM / 'table1-medium.md')}))", "",
         "1,000 training / 100 test shapes of the 10 procedural `parts` classes on the default radar grid "
@@ -83,11 +91,7 @@ def table1_real(root: Path) -> str:
     folder = root / TABLE1_REAL
     if not (folder / "table1-real.csv").is_file():
         return ""
-    rows = join_rows(read_table(folder / "table1-real.csv"), read_table(folder / "table1-real_diagnostics.csv"))
-    main = markdown_table(rows, columns(OBSERVABILITY, SHAPE_METRICS))
-    diag = markdown_table([(t, m) for t, m in rows if "full/radar_dependence_iou_mean" in m],
-                          columns(OBSERVABILITY, [("radar_dependence_iou", "radar dependence Δ IoU ↑", True, 3, "se"),
-                                                  ("ceiling_iou", "Stage-1 ceiling IoU", True, 3, "std")]))
+    main, diag = table1_tables(folder)
     extra = [f"Per class: [per_class.md]({_link(TABLE1_REAL / 'per_class.md')})."] if (folder / "per_class.md").is_file() else []
     return "\n".join([
         f"## Table 1 on real targets ([report]({_link(TABLE1_REAL / 'table1-real.md')}))", "",
@@ -157,13 +161,9 @@ def readme_block(root: Path) -> str:
 # ---- the shipped model's card ------------------------------------------------------------------------
 def _shipped_scores(root: Path, obs: str) -> dict[str, float]:
     """Means over the shapes of the shipped run's per-shape scores (one row per test shape)."""
-    path = root / TABLE1_MEDIUM / "scores" / f"{SHIPPED_RUN.format(obs=obs)}.csv"
-    with path.open(newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    keys = ("iou", "chamfer_l2_x1e3", "fscore_1pct", "radar_dependence_iou", "ceiling_iou")
-    out = {k: sum(float(r[k]) for r in rows) / len(rows) for k in keys if rows and k in rows[0]}
-    out["shapes"] = float(len(rows))
-    return out
+    rows = read_scores(root / TABLE1_MEDIUM / "scores" / f"{SHIPPED_RUN.format(obs=obs)}.csv")
+    means = pooled(rows, ("iou", "chamfer_l2_x1e3", "fscore_1pct", "radar_dependence_iou", "ceiling_iou"))
+    return {k[: -len("_mean")]: v for k, v in means.items() if k.endswith("_mean")} | {"shapes": means["num_shapes"]}
 
 
 CONFIDENCE = Path("reports/shipped-model/confidence_parts_unseen.md")
@@ -210,11 +210,9 @@ def _real_targets_line(root: Path) -> str:
     path = root / TABLE1_REAL / "scores" / "shipped-full.csv"
     if not path.is_file():
         return ""
-    with path.open(newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    iou = sum(float(r["iou"]) for r in rows) / len(rows)
-    dependence = sum(float(r["radar_dependence_iou"]) for r in rows) / len(rows)
-    ceiling = sum(float(r["ceiling_iou"]) for r in rows) / len(rows)
+    rows = read_scores(path)
+    means = pooled(rows, ("iou", "radar_dependence_iou", "ceiling_iou"))
+    iou, dependence, ceiling = (means[f"{k}_mean"] for k in ("iou", "radar_dependence_iou", "ceiling_iou"))
     return (f" On the {len(rows)} real test objects of `make data-real` (aircraft, ships, vehicles, buildings) "
             f"it scores IoU {iou:.3f}, with a radar dependence of {dependence:+.3f} (it hardly reads their "
             f"radar) and a Stage-1 ceiling of {ceiling:.3f} ([report]({_link(TABLE1_REAL / 'table1-real.md')}); "
