@@ -257,6 +257,16 @@ def test_cpu_model_files_are_differences_from_the_paper_file(cpu, paper):
 DATA_CONFIGS = sorted(p.name for p in (CONF / "data").glob("*.yaml"))
 
 
+def _with_real_roots(path, text, root, out):
+    """A copy of a real-target config whose every source root is ``root``."""
+    raw = yaml.safe_load(text)
+    for source in raw["family_options"]["sources"]:
+        source["root"] = str(root)
+    raw["radar"] = str(CONF.parent / raw["radar"]) if not Path(raw["radar"]).is_absolute() else raw["radar"]
+    out.write_text(yaml.safe_dump(raw))
+    return out
+
+
 @pytest.mark.parametrize("name", DATA_CONFIGS)
 def test_data_config_loads_and_checks(name, tmp_path):
     import trimesh
@@ -270,6 +280,12 @@ def test_data_config_loads_and_checks(name, tmp_path):
             load_build_config(path)
         path = tmp_path / name
         path.write_text(text.replace("PATH/TO/MESHES", str(tmp_path / "meshes")))
+    if yaml.safe_load(text)["family"] == "real":  # sources fetched by `make data-real`: empty stand-ins
+        missing = tmp_path / "not-fetched"
+        with pytest.raises(UserInputError, match=r"real.sources\[0\].root: .*not-fetched is not a directory .*make data-real"):
+            load_build_config(_with_real_roots(path, text, missing, tmp_path / "missing.yaml"))
+        (tmp_path / "src").mkdir()
+        path = _with_real_roots(path, text, tmp_path / "src", tmp_path / name)
     raw = yaml.safe_load(text)
     config = load_build_config(path)
     assert config.family == raw["family"] and config.num == raw.get("num") and config.seed == raw.get("seed", 0)
