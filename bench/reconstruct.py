@@ -7,6 +7,10 @@ grid: the path ``radar2shape reconstruct`` and the metric callback run. Without 
 models are built from conf/model/sdf_vae_cpu.yaml and conf/model/radar_diffusion_cpu.yaml, with
 Stage 1 fitted to a sphere for 100 steps so marching cubes meets a real surface (the time of
 sampling does not depend on the weights). Target: < 2 s per reconstruction on 2 cores.
+``--candidates K`` also times ``reconstruct --candidates K`` (K samples, the verifier's features and
+choice, the chosen mesh) against one sample in the same run, with the checkpoint's verifier
+(``<name>.verifier.pt``) or, without one, an untrained verifier (the time does not depend on it).
+Target: < 5 s on 2 cores.
 Prints the split between sampling (Transformer steps) and decoding + marching cubes, and the CPU
 seconds, which stay meaningful on a shared machine (there, `--threads 1` avoids two threads
 thrashing against other jobs).
@@ -65,12 +69,15 @@ def main() -> None:
     parser.add_argument("--resolution", type=int, default=64, help="marching-cubes grid (default 64)")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
+    parser.add_argument("--candidates", type=int, help="also time the verifier's pick of K samples")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
     with tempfile.TemporaryDirectory() as folder:
         if args.ckpt:
-            model = RadarDiffusion.load_from_checkpoint(args.ckpt, map_location="cpu", weights_only=True)
+            from radar2shape.pretrained import load_model
+
+            model = load_model(args.ckpt)
         else:
             model = cpu_config_model(Path(folder))
     model.eval()
@@ -94,6 +101,30 @@ def main() -> None:
           f"decode + marching cubes {total_s[best] - sample_s[best]:.2f} s; {cpu_s[best]:.2f} CPU s; "
           f"{faces} faces) -- {verdict} the 2 s target")
     print(decode_comparison(model, latents[0], args.resolution, args.repeats))
+    if args.candidates:
+        print(candidate_timing(model, batch, args, total_s[best]))
+
+
+def candidate_timing(model: RadarDiffusion, batch: dict, args, one_sample_s: float) -> str:
+    """Seconds of ``reconstruct --candidates K``: K samples, verifier features and choice, the chosen mesh."""
+    from radar2shape.models.verifier import Verifier, default_verifier_path, feature_names, load_verifier, score_candidates
+
+    path = default_verifier_path(Path(args.ckpt)) if args.ckpt else None
+    if path is not None and path.is_file():
+        verifier, which = load_verifier(path, model.n_levels), path.name
+    else:
+        verifier, which = Verifier(len(feature_names(model.n_levels))).eval(), "an untrained verifier"
+    times = []
+    for _ in range(args.repeats):
+        start = time.perf_counter()
+        latents, predicted = score_candidates(model, verifier, batch, args.candidates, args.steps)
+        best = int(predicted.argmax())
+        model.mean_mesh(latents[best:best + 1], args.resolution)
+        times.append(time.perf_counter() - start)
+    seconds = min(times)
+    verdict = "meets" if seconds < 5.0 else "misses"
+    return (f"reconstruct --candidates {args.candidates} ({which}): {seconds:.2f} s (best of {args.repeats}), "
+            f"{seconds / one_sample_s:.1f}x one sample -- {verdict} the 5 s target")
 
 
 def decode_comparison(model: RadarDiffusion, latents: torch.Tensor, resolution: int, repeats: int) -> str:

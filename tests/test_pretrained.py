@@ -224,6 +224,23 @@ def test_package_data_lists_the_default_model():
     assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns), patterns
 
 
+def test_shipped_verifier_fits_the_shipped_model_and_is_package_data():
+    from radar2shape.models.verifier import default_verifier_path, load_verifier
+
+    path = default_verifier_path(SHIPPED)
+    if not path.is_file():
+        pytest.skip(f"no shipped verifier at {path} (scripts/train_verifier.py writes one)")
+    patterns = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["radar2shape"]
+    relative = path.relative_to(REPO_ROOT / "src" / "radar2shape").as_posix()
+    assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns), patterns
+    model = load_model(SHIPPED)
+    verifier = load_verifier(path, model.n_levels)  # its features are this model's (else one clear error)
+    about = torch.load(path, map_location="cpu", weights_only=True)["about"]
+    assert about["checkpoint"] == SHIPPED.name and about["data"] == "data/parts_unseen"
+    assert (REPO_ROOT / about["report"]).is_file()  # the report that scores it is committed
+    assert path.stat().st_size < 100_000 and not verifier.training
+
+
 def default_grid() -> dict[str, np.ndarray]:
     """conf/radar/default.yaml's axes in radians and hertz."""
     conf = yaml.safe_load((REPO_ROOT / "conf" / "radar" / "default.yaml").read_text())

@@ -212,3 +212,58 @@ def test_a_datamodule_that_does_not_fit_the_network_is_refused(fitted, checkpoin
     with pytest.raises(UserInputError, match="roll-symmetric"):
         ProfileUNetDiffusion(num_aspect=4, num_freq=8).set_radar_spec(SPEC)
     ProfileUNetDiffusion(num_aspect=16, num_freq=16).set_radar_spec(profile_spec)  # fits: accepted
+
+
+def volume_verifier(model):
+    """A verifier file's model that scores candidates by their volume (a known, checkable rule)."""
+    from radar2shape.models.verifier import Verifier, feature_names
+
+    names = feature_names(model.n_levels)
+    verifier = Verifier(len(names), hidden=4)
+    with torch.no_grad():
+        for p in verifier.parameters():
+            p.zero_()
+        verifier.net[0].weight[0, names.index("log_volume_ratio")] = 1.0
+        verifier.net[0].bias[0] = 5.0
+        verifier.net[2].weight[0, 0] = 1.0
+        verifier.net[4].weight[0, 0] = 1.0
+    return verifier
+
+
+def test_candidates_return_the_verified_sample(checkpoint, tmp_path, capsys):
+    from radar2shape.commands.reconstruct import load_model, measured_input, model_batch
+    from radar2shape.models.verifier import default_verifier_path, save_verifier, score_candidates
+
+    model = load_model(checkpoint)
+    verifier = volume_verifier(model)
+    path = tmp_path / "volume.verifier.pt"
+    save_verifier(verifier, path, model.n_levels, {"rule": "volume"})
+    radar = response_file(tmp_path / "r.npz")
+    out = tmp_path / "m.obj"
+    assert run(checkpoint, radar, out, "--candidates", "3", "--steps", "3", "--seed", "2", "--verifier", str(path)) == 0
+    printed = capsys.readouterr().out
+    grid = measured_input([tmp_path / "r.npz"], "npz", model.radar_spec)
+    latents, predicted = score_candidates(model, verifier, model_batch(model.radar_spec, grid), 3, 3, 2)
+    best = int(predicted.argmax())
+    assert f"verifier: returned candidate {best + 1} of 3, predicted IoU {float(predicted[best]):.2f} " in printed
+    expected = model.mean_mesh(latents[best:best + 1])[0]
+    assert len(trimesh.load(out, process=False).vertices) == len(expected.vertices)
+    # the default verifier lives beside the checkpoint: absent there, one line says where it looked
+    copy = tmp_path / "model.ckpt"
+    shutil.copy(checkpoint, copy)
+    assert run(str(copy), radar, tmp_path / "m2.obj", "--candidates", "2") == 2
+    err = capsys.readouterr().err.strip()
+    assert f"no verifier beside model.ckpt: expected {default_verifier_path(copy)}" in err and "\n" not in err
+    shutil.copy(path, default_verifier_path(copy))
+    assert run(str(copy), radar, tmp_path / "m2.obj", "--candidates", "2", "--steps", "3") == 0
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--candidates", "1"], "--candidates: expected an integer >= 2, got 1"),
+    (["--candidates", "2", "--samples", "2"], "use one of them"),
+    (["--verifier", "v.pt"], "--verifier is read with --candidates K"),
+])
+def test_bad_candidate_options(checkpoint, tmp_path, capsys, extra, message):
+    assert run(checkpoint, response_file(tmp_path / "r.npz"), tmp_path / "m.obj", *extra) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err and not (tmp_path / "m.obj").exists()

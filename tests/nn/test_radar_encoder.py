@@ -55,3 +55,32 @@ def test_uneven_blocks_are_contiguous_and_padded():
     assert enc(torch.randn(2, 3, 4, 10), torch.ones(2, 3, 4, dtype=torch.bool)).shape == (2, 4, 8)
     with pytest.raises(ValueError, match="cannot split"):
         RadarBlockEncoder(n_freq=3, n_blocks=4, dim=8)
+
+
+def test_roll_conv_wraps_roll_and_zero_pads_aspect():
+    from radar2shape.nn.radar_encoder import RollConv2d
+
+    torch.manual_seed(0)
+    conv = RollConv2d(2, 3, 3, padding=1, bias=False)
+    x = torch.randn(1, 2, 5, 8)
+    # by hand: wrap the roll axis (last), zeros along aspect, then a plain valid convolution
+    wrapped = torch.cat([x[..., -1:], x, x[..., :1]], dim=-1)
+    expected = torch.nn.functional.conv2d(torch.nn.functional.pad(wrapped, (0, 0, 1, 1)), conv.weight)
+    assert torch.allclose(conv(x), expected, atol=1e-6)
+    # a shift along roll commutes with it (an edge would break this at the seam)
+    assert torch.allclose(conv(x.roll(3, dims=-1)), conv(x).roll(3, dims=-1), atol=1e-6)
+    plain = torch.nn.Conv2d(2, 3, 3, padding=1, bias=False)
+    plain.weight.data.copy_(conv.weight.data)
+    assert not torch.allclose(plain(x.roll(3, dims=-1)), plain(x).roll(3, dims=-1), atol=1e-3)
+
+
+def test_circular_encoder_sees_roll_only_through_its_angle_channels():
+    torch.manual_seed(0)
+    encoder = RadarBlockEncoder(8, 2, 16, depth=18, width_mult=0.125, roll_padding="circular").eval()
+    radar, mask = torch.randn(1, 4, 16, 8), torch.ones(1, 4, 16, dtype=torch.bool)
+    turned = radar.roll(8, dims=2)  # 8 roll cells: the ResNet's total stride, so pooling is shift-exact
+    assert not torch.allclose(encoder(radar, mask), encoder(turned, mask), atol=1e-4)  # the angle tells the turn
+    with torch.no_grad():
+        encoder.resnet.features[0].weight[:, -2:] = 0  # blind the angle channels
+    assert torch.allclose(encoder(radar, mask), encoder(turned, mask), atol=1e-5)
+    assert encoder.resnet.features[0].in_channels == 4 + 1 + 2  # 4 frequencies, mask, cos and sin of roll

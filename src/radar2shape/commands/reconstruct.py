@@ -89,6 +89,10 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         help=f"least fraction of the model's band the file must cover (default {MIN_OVERLAP})")
     parser.add_argument("--save-input", type=Path, help="also write the model-grid input (.npz: db, mask, ...)")
     parser.add_argument("--samples", type=int, help="K sampled shapes; the mesh is their mean (default: model's)")
+    parser.add_argument("--candidates", type=int, help="draw K shapes and return the one the model's verifier "
+                        "scores best, with its predicted IoU (3D models with a verifier file; not with --samples)")
+    parser.add_argument("--verifier", type=Path, help="verifier file for --candidates (default: the checkpoint's "
+                        "<name>.verifier.pt beside it)")
     parser.add_argument("--steps", type=int, help="DDIM steps, RadarDiffusion only (default: the model's)")
     parser.add_argument("--resolution", type=int, help="marching-cubes grid size, RadarDiffusion only")
     parser.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
@@ -149,6 +153,25 @@ def reconstruct_input(model, grid: GridInput, samples: int | None = None, steps:
     return recon, spread
 
 
+def reconstruct_best_candidate(model, verifier, grid: GridInput, candidates: int, steps: int | None = None,
+                               resolution: int | None = None, seed: int = 0):
+    """``(Reconstruction, SDF spread over the K candidates at its vertices, chosen index, predicted IoUs [K])``."""
+    import torch
+
+    from radar2shape.models.verifier import score_candidates
+    from radar2shape.reconstruction import Reconstruction
+
+    latents, predicted = score_candidates(model, verifier, model_batch(model.radar_spec, grid), candidates, steps, seed)
+    best = int(predicted.argmax())
+    mesh, _ = model.mean_mesh(latents[best:best + 1], resolution)
+    spread = np.zeros(0, dtype=np.float32)
+    if len(mesh.vertices):
+        with torch.no_grad():
+            vertices = torch.as_tensor(mesh.vertices, dtype=torch.float32, device=model.device)
+            spread = model.sdf_function(latents)(vertices).std(0, unbiased=False).cpu().numpy()
+    return Reconstruction(mesh=mesh), spread, best, predicted.cpu().numpy()
+
+
 def save_png(path: Path, db: np.ndarray, spec: RadarSpec, mesh, title: str) -> None:
     """Input dB image (mean power over frequency, aspect x roll; masked cells blank) beside two views of the mesh."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -180,10 +203,15 @@ def save_png(path: Path, db: np.ndarray, spec: RadarSpec, mesh, title: str) -> N
 
 def _check_arguments(args: argparse.Namespace) -> list[Path]:
     """Everything checkable without the model; returns the output paths (the mesh first)."""
-    for name in ("samples", "steps", "resolution"):
+    for name in ("samples", "steps", "resolution", "candidates"):
         value = getattr(args, name)
-        if value is not None and value < (2 if name == "resolution" else 1):
-            raise UserInputError(f"--{name}: expected a positive integer, got {value}")
+        if value is not None and value < (2 if name in ("resolution", "candidates") else 1):
+            least = "an integer >= 2" if name in ("resolution", "candidates") else "a positive integer"
+            raise UserInputError(f"--{name}: expected {least}, got {value}")
+    if args.candidates is not None and args.samples is not None:
+        raise UserInputError("--candidates returns one verified sample, --samples the mean of K: use one of them")
+    if args.verifier is not None and args.candidates is None:
+        raise UserInputError("--verifier is read with --candidates K; add --candidates")
     if args.seed < 0:
         raise UserInputError(f"--seed: expected a non-negative integer, got {args.seed}")
     if args.format is not None and args.measured is None:
@@ -214,7 +242,7 @@ def _check_arguments(args: argparse.Namespace) -> list[Path]:
 def _check_options(args: argparse.Namespace, model, profile: bool) -> None:
     """The options against the loaded model, and the memory its meshing needs."""
     if profile:
-        unused = [f"--{n}" for n in ("steps", "resolution", "spread") if getattr(args, n) is not None]
+        unused = [f"--{n}" for n in ("steps", "resolution", "spread", "candidates") if getattr(args, n) is not None]
         if args.samples is not None and "num_samples" not in model.hparams:
             unused.append("--samples")
         if unused:
@@ -235,6 +263,18 @@ def check_not_empty(grid: GridInput, spec: RadarSpec, name: str) -> None:
                              "no measurement (an all-zero response?); pass --allow-empty to reconstruct anyway")
 
 
+def load_candidate_verifier(args: argparse.Namespace, checkpoint: Path, model):
+    """The verifier for ``--candidates``: ``--verifier``, else the one beside the checkpoint."""
+    from radar2shape.models.verifier import default_verifier_path, load_verifier
+
+    path = args.verifier or default_verifier_path(checkpoint)
+    if not path.is_file():
+        where = "--verifier" if args.verifier else f"no verifier beside {checkpoint.name}: expected"
+        raise UserInputError(f"{where} {path} (scripts/train_verifier.py trains one for a model); "
+                             "leave out --candidates to reconstruct without one")
+    return load_verifier(path, model.n_levels)
+
+
 def _checkpoint_path(ckpt: Path | None) -> Path:
     """``--ckpt`` when given; else the shipped default model, named on stdout so the user knows which ran."""
     if ckpt is not None:
@@ -249,10 +289,12 @@ def _checkpoint_path(ckpt: Path | None) -> Path:
 def main(args: argparse.Namespace) -> int:
     outputs = _check_arguments(args)
     memory_limit_bytes(args.memory_limit_gb)  # a bad limit is refused before the model loads
-    model = load_model(_checkpoint_path(args.ckpt))
+    checkpoint = _checkpoint_path(args.ckpt)
+    model = load_model(checkpoint)
     spec = model.radar_spec
     profile = is_profile_model(model)
     _check_options(args, model, profile)
+    verifier = load_candidate_verifier(args, checkpoint, model) if args.candidates else None
     paths, fmt = ([args.radar], "npz") if args.radar is not None else (args.measured, args.format)
     grid = measured_input(paths, fmt, spec, args.roll_symmetric, args.calibration_db, args.size_m, args.min_overlap)
     name = paths[0].name
@@ -262,7 +304,11 @@ def main(args: argparse.Namespace) -> int:
           f"{int(grid.freq_mask.sum())} of {len(grid.freq_mask)} frequencies in band ({100 * grid.overlap:.0f} % overlap)")
 
     start = time.perf_counter()
-    recon, spread = reconstruct_input(model, grid, args.samples, args.steps, args.resolution, args.seed)
+    if verifier is not None:
+        recon, spread, best, predicted = reconstruct_best_candidate(model, verifier, grid, args.candidates, args.steps,
+                                                                    args.resolution, args.seed)
+    else:
+        recon, spread = reconstruct_input(model, grid, args.samples, args.steps, args.resolution, args.seed)
     seconds = time.perf_counter() - start
     mesh = recon.mesh
     if mesh is None or len(mesh.faces) == 0:
@@ -285,9 +331,13 @@ def main(args: argparse.Namespace) -> int:
             written.append(args.png)
     detail = f"{len(mesh.vertices)} vertices, {len(mesh.faces)} faces, {seconds:.2f} s"
     if spread is not None:
-        detail += (f", {args.samples or model.hparams.num_samples} sample(s); SDF spread over samples mean "
+        count = args.candidates or args.samples or model.hparams.num_samples
+        detail += (f", {count} {'candidate' if verifier is not None else 'sample'}(s); SDF spread over them mean "
                    f"{spread.mean():.4f}, max {spread.max():.4f}")
     print(f"wrote {args.out}: {detail}")
+    if verifier is not None:
+        print(f"verifier: returned candidate {best + 1} of {args.candidates}, predicted IoU {predicted[best]:.2f} "
+              f"(candidates {predicted.min():.2f} to {predicted.max():.2f}; docs/metrics.md)")
     if not profile:
         from radar2shape.metrics.consistency import radar_consistency
 

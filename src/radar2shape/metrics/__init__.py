@@ -3,7 +3,8 @@
 - ``functional``: per-sample Chamfer-L2, F-score and IoU on point sets and occupancy labels;
 - ``scoring``: a model's ``Reconstruction`` -> those scores (sampling, containment, worst values);
 - ``rollsym``: IoU-S, IoU-R and MATCH-S for roll-symmetric shapes;
-- ``scorers``: the per-sample score families the evaluator runs (``ShapeScorer``, ``ProfileScorer``);
+- ``scorers``: the per-sample score families the evaluator runs (``ShapeScorer``, ``ProfileScorer``,
+  ``ConsistencyScorer``);
 - ``aggregate``: torchmetrics classes pooling scores into mean +- std, overall and per class;
 - ``callback``: ``ReconstructionEvaluator``, the Lightning callback every experiment uses.
 """
@@ -16,7 +17,7 @@ _HOMES = {
     "ChamferDistance": "aggregate", "FScore": "aggregate", "MeanStd": "aggregate", "VolumetricIoU": "aggregate",
     "pool_scores": "aggregate", "ReconstructionEvaluator": "callback", "CHAMFER_SCALE": "functional",
     "CHAMFER_WORST": "functional", "FSCORE_TAU": "functional", "chamfer_l2": "functional", "fscore": "functional",
-    "iou": "functional", "ProfileScorer": "scorers", "Scorer": "scorers", "ShapeScorer": "scorers",
+    "iou": "functional", "ConsistencyScorer": "scorers", "ProfileScorer": "scorers", "Scorer": "scorers", "ShapeScorer": "scorers",
     "score_reconstruction": "scoring",
 }
 
@@ -34,6 +35,7 @@ __all__ = [
     "CHAMFER_WORST",
     "FSCORE_TAU",
     "ChamferDistance",
+    "ConsistencyScorer",
     "FScore",
     "MeanStd",
     "ProfileScorer",

@@ -59,6 +59,23 @@ def take(batch: dict, rows: slice) -> dict:
     return out
 
 
+# (confidence, score) pairs whose Spearman rank correlation over the shapes is logged when both are scored:
+# how well a score that needs no ground truth says which reconstructions are poor.
+RANKED = (("radar_consistency", "iou"),)
+
+
+def rank_correlation(rows: list[dict], a: str, b: str) -> float | None:
+    """Spearman's rho of ``a`` against ``b`` over the rows holding finite values of both (None: < 3 rows)."""
+    from scipy.stats import spearmanr
+
+    pairs = [(row[a], row[b]) for row in rows if a in row and b in row]
+    pairs = [(x, y) for x, y in pairs if math.isfinite(x) and math.isfinite(y)]
+    if len(pairs) < 3:
+        return None
+    rho = spearmanr(*zip(*pairs)).statistic
+    return float(rho) if math.isfinite(rho) else None
+
+
 def standard_error(std: float, count: float) -> float:
     """Standard error of a mean from the population std (ddof 0) of ``count`` values: std / sqrt(n - 1)."""
     return std / math.sqrt(count - 1) if count > 1 else math.nan
@@ -288,6 +305,10 @@ class ReconstructionEvaluator(L.Callback):
             for c, class_name in enumerate(self._names):
                 per_class = (values[f"class_{k}"][c] for k in ("mean", "std", "count"))
                 self._log(pl_module, f"{split}/{class_name}/{name}", *per_class)
+        for confidence, score in RANKED:
+            rho = rank_correlation(rows, confidence, score)
+            if rho is not None:
+                pl_module.log(f"{split}/spearman_{confidence}_{score}", rho, sync_dist=False)
         if rows:
             for key, count in self.counts[split].items():
                 pl_module.log(f"{split}/{key}", float(count), sync_dist=False)

@@ -5,7 +5,9 @@ evaluator asks the model for the reconstructions once and hands them to every sc
 logs and writes the scores. A new family of metrics is one small class here, not a new callback.
 
 - :class:`ShapeScorer`: Chamfer-L2, volumetric IoU and F-score (``metrics.scoring``; docs/metrics.md);
-- :class:`ProfileScorer`: IoU-S, MATCH-S and IoU-R of roll-symmetric shapes (``metrics.rollsym``).
+- :class:`ProfileScorer`: IoU-S, MATCH-S and IoU-R of roll-symmetric shapes (``metrics.rollsym``);
+- :class:`ConsistencyScorer`: the radar consistency of each reconstruction (``metrics.consistency``),
+  a confidence without ground truth; the evaluator logs its rank correlation with IoU.
 """
 
 from __future__ import annotations
@@ -175,4 +177,35 @@ class ProfileScorer(Scorer):
             if self.radar_iou:
                 row["iou_r"] = self._radar_iou(pred, target) if valid else 0.0
             rows.append(row)
+        return rows
+
+
+class ConsistencyScorer(Scorer):
+    """``radar_consistency``: each reconstruction re-simulated with PO on the input's grid, residual in
+    power over the observed cells after one gain (``metrics.consistency``; 0 explains the input, 1 not
+    at all). It reads no ground truth, so it is the confidence a user gets from ``reconstruct``;
+    logged per shape beside IoU, with their Spearman correlation. One PO simulation per shape
+    (seconds each): add it to test runs, not to frequent validation.
+    """
+
+    required_keys = ("radar", "radar_mask")
+
+    def setup(self, trainer, pl_module) -> None:
+        spec = getattr(trainer.datamodule, "radar_spec", None) if trainer.datamodule is not None else None
+        if spec is None or spec.roll_symmetric:
+            raise UserInputError("ConsistencyScorer: needs a 3D radar DataModule (aspect x roll x frequency)")
+        self.spec = spec
+
+    def score(self, recs: Sequence, batch: dict, index: np.ndarray) -> list[dict[str, float]]:
+        from radar2shape.metrics.consistency import radar_consistency
+
+        radar, mask = _numpy(batch["radar"]), _numpy(batch["radar_mask"]).astype(bool)
+        rows = []
+        for i, rec in enumerate(recs):
+            mesh = getattr(rec, "mesh", None)
+            if mesh is None or len(mesh.faces) == 0:
+                rows.append({"radar_consistency": math.nan})
+                continue
+            db = radar[i].astype(np.float64) * self.spec.db_std + self.spec.db_mean
+            rows.append({"radar_consistency": radar_consistency(mesh, db, mask[i], self.spec)})
         return rows

@@ -30,7 +30,7 @@ from radar2shape.models.base import Reconstruction, ReconstructionModel
 from radar2shape.models.sdf_vae import SDFVAE
 from radar2shape.nn.diffusion import GaussianDiffusion, drop_condition, guided
 from radar2shape.nn.positional import TimestepEmbedding, sinusoidal_embedding
-from radar2shape.nn.radar_encoder import RadarBlockEncoder
+from radar2shape.nn.radar_encoder import PADDINGS, RadarBlockEncoder
 from radar2shape.nn.transformer import Transformer, causal_mask
 from radar2shape.radar.spec import RadarSpec
 
@@ -97,6 +97,8 @@ class RadarDiffusion(ReconstructionModel):
         num_freq: number of radar frequencies F, cut into L contiguous blocks (equal when L divides F).
         dim, n_layers, n_heads, mlp_ratio, dropout: Transformer width D, depth, heads, MLP ratio.
         encoder_depth, encoder_width: ResNet depth (18/34/50/101/152) and width multiplier.
+        roll_padding: "zeros" or "circular": how the radar ResNet pads the roll axis
+            (:class:`~radar2shape.nn.radar_encoder.RadarBlockEncoder`; circular adds roll-angle channels).
         num_steps, schedule: diffusion steps T and noise schedule (``cosine`` or ``linear``).
         eps_skip: predict the noise as ``sqrt(1 - abar) h_t + sqrt(abar) net`` (see
             :meth:`GaussianDiffusion.skip_eps`; without it, samples from the cosine schedule explode).
@@ -131,6 +133,7 @@ class RadarDiffusion(ReconstructionModel):
         dropout: float = 0.0,
         encoder_depth: int = 152,
         encoder_width: float = 1.0,
+        roll_padding: str = "zeros",
         num_steps: int = 1000,
         schedule: str = "cosine",
         eps_skip: bool = True,
@@ -149,6 +152,8 @@ class RadarDiffusion(ReconstructionModel):
         ema_decay: float = 0.0,
     ) -> None:
         super().__init__()
+        if roll_padding not in PADDINGS:
+            raise UserInputError(f"RadarDiffusion: roll_padding must be one of {', '.join(PADDINGS)}, got {roll_padding!r}")
         if loss not in ("v", "eps"):
             raise UserInputError(f"RadarDiffusion: loss must be 'v' or 'eps', got {loss!r}")
         if loss == "v" and not eps_skip:
@@ -169,7 +174,8 @@ class RadarDiffusion(ReconstructionModel):
         self.n_levels, self.latent_dim = stage1.n_levels, int(stage1.hparams.latent_dim)
 
         self.standardiser = LatentStandardiser(self.n_levels, self.latent_dim)
-        self.radar_encoder = RadarBlockEncoder(num_freq, self.n_levels, dim, encoder_depth, encoder_width)
+        self.radar_encoder = RadarBlockEncoder(num_freq, self.n_levels, dim, encoder_depth, encoder_width,
+                                               roll_padding)
         self.latent_in = nn.Linear(self.latent_dim, dim)
         self.token_type = nn.Parameter(torch.zeros(2, dim))  # 0: radar token, 1: shape token
         self.time_embed = TimestepEmbedding(dim)

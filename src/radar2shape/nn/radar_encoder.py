@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from radar2shape.nn.positional import sinusoidal_embedding
@@ -37,6 +38,32 @@ RESNET_LAYOUTS = {
     101: ("bottleneck", (3, 4, 23, 3)),
     152: ("bottleneck", (3, 8, 36, 3)),
 }
+
+
+PADDINGS = ("zeros", "circular")
+
+
+class RollConv2d(nn.Conv2d):
+    """A convolution that pads the last axis (roll, a full circle) by wrapping and the other with zeros.
+
+    Roll is periodic: the cells at 0 and 360 - step degrees are neighbours, and zero padding puts a
+    false edge between them. Parameters and their names are those of ``nn.Conv2d``.
+    """
+
+    def __init__(self, c_in: int, c_out: int, kernel_size: int, stride: int = 1, padding: int = 0, bias: bool = True):
+        super().__init__(c_in, c_out, kernel_size, stride=stride, padding=(padding, 0), bias=bias)
+        self.roll_padding = padding
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if self.roll_padding:
+            x = F.pad(x, (self.roll_padding, self.roll_padding, 0, 0), mode="circular")
+        return super().forward(x)
+
+
+def conv(c_in: int, c_out: int, kernel_size: int, stride: int = 1, padding: int = 0, roll: str = "zeros") -> nn.Conv2d:
+    """A bias-free convolution with zero padding, or wrapped along roll (:class:`RollConv2d`)."""
+    kind = RollConv2d if roll == "circular" and padding else nn.Conv2d
+    return kind(c_in, c_out, kernel_size, stride=stride, padding=padding, bias=False)
 
 
 def group_norm(channels: int, zero_init: bool = False) -> nn.GroupNorm:
@@ -62,11 +89,11 @@ class BasicBlock(nn.Module):
 
     expansion = 1
 
-    def __init__(self, c_in: int, width: int, stride: int) -> None:
+    def __init__(self, c_in: int, width: int, stride: int, roll: str = "zeros") -> None:
         super().__init__()
         self.branch = nn.Sequential(
-            nn.Conv2d(c_in, width, 3, stride=stride, padding=1, bias=False), group_norm(width), nn.ReLU(inplace=True),
-            nn.Conv2d(width, width, 3, padding=1, bias=False), group_norm(width, zero_init=True),
+            conv(c_in, width, 3, stride, 1, roll), group_norm(width), nn.ReLU(inplace=True),
+            conv(width, width, 3, 1, 1, roll), group_norm(width, zero_init=True),
         )
         self.skip = shortcut(c_in, width, stride)
 
@@ -79,12 +106,12 @@ class Bottleneck(nn.Module):
 
     expansion = 4
 
-    def __init__(self, c_in: int, width: int, stride: int) -> None:
+    def __init__(self, c_in: int, width: int, stride: int, roll: str = "zeros") -> None:
         super().__init__()
         c_out = width * self.expansion
         self.branch = nn.Sequential(
             nn.Conv2d(c_in, width, 1, bias=False), group_norm(width), nn.ReLU(inplace=True),
-            nn.Conv2d(width, width, 3, stride=stride, padding=1, bias=False), group_norm(width), nn.ReLU(inplace=True),
+            conv(width, width, 3, stride, 1, roll), group_norm(width), nn.ReLU(inplace=True),
             nn.Conv2d(width, c_out, 1, bias=False), group_norm(c_out, zero_init=True),
         )
         self.skip = shortcut(c_in, c_out, stride)
@@ -101,22 +128,26 @@ class ResNetEncoder(nn.Module):
         depth: 18, 34 (basic blocks), 50, 101 or 152 (bottleneck blocks).
         width_mult: multiplies the stage widths 64/128/256/512 (1.0 = the standard ResNet;
             e.g. 0.125 gives 8/16/32/64 for a CPU-sized model).
+        roll_padding: "zeros" or "circular" (the last image axis wraps: :class:`RollConv2d`).
     """
 
-    def __init__(self, in_channels: int, out_dim: int, depth: int = 18, width_mult: float = 1.0) -> None:
+    def __init__(self, in_channels: int, out_dim: int, depth: int = 18, width_mult: float = 1.0,
+                 roll_padding: str = "zeros") -> None:
         super().__init__()
         if depth not in RESNET_LAYOUTS:
             raise ValueError(f"ResNet depth must be one of {sorted(RESNET_LAYOUTS)}, got {depth}")
+        if roll_padding not in PADDINGS:
+            raise ValueError(f"roll_padding must be one of {PADDINGS}, got {roll_padding!r}")
         kind, counts = RESNET_LAYOUTS[depth]
         block = BasicBlock if kind == "basic" else Bottleneck
         widths = [max(4, round(w * width_mult)) for w in (64, 128, 256, 512)]
         layers: list[nn.Module] = [
-            nn.Conv2d(in_channels, widths[0], 3, padding=1, bias=False), group_norm(widths[0]), nn.ReLU(inplace=True)
+            conv(in_channels, widths[0], 3, 1, 1, roll_padding), group_norm(widths[0]), nn.ReLU(inplace=True)
         ]
         c_in = widths[0]
         for stage, (width, count) in enumerate(zip(widths, counts)):
             for i in range(count):
-                layers.append(block(c_in, width, stride=2 if stage > 0 and i == 0 else 1))
+                layers.append(block(c_in, width, stride=2 if stage > 0 and i == 0 else 1, roll=roll_padding))
                 c_in = width * block.expansion
         self.features = nn.Sequential(*layers)
         self.head = nn.Linear(c_in, out_dim)
@@ -149,15 +180,22 @@ class RadarBlockEncoder(nn.Module):
     Token = ResNet(block image) + level path(masked mean, std per channel) + position of the block.
     Blocks are contiguous bands (:func:`block_frequency_index`); a block one frequency short gets
     a zero channel in its place.
+
+    ``roll_padding="circular"`` wraps the ResNet's padding along roll (the 360-degree circle has no
+    edge) and adds the cosine and sine of each cell's roll angle as two input channels: with no
+    edge to locate them, features would otherwise be blind to where on the circle they are, and a
+    turned object's response differs from the unturned one only by that position.
     """
 
-    def __init__(self, n_freq: int, n_blocks: int, dim: int, depth: int = 18, width_mult: float = 1.0) -> None:
+    def __init__(self, n_freq: int, n_blocks: int, dim: int, depth: int = 18, width_mult: float = 1.0,
+                 roll_padding: str = "zeros") -> None:
         super().__init__()
         self.n_blocks = n_blocks
         self.dim = dim
+        self.roll_channels = 2 if roll_padding == "circular" else 0
         self.register_buffer("freq_index", block_frequency_index(n_freq, n_blocks), persistent=False)
         channels = self.freq_index.shape[1]
-        self.resnet = ResNetEncoder(channels + 1, dim, depth, width_mult)
+        self.resnet = ResNetEncoder(channels + 1 + self.roll_channels, dim, depth, width_mult, roll_padding)
         self.level = nn.Linear(2 * channels, dim)  # masked mean and std of each channel
 
     def forward(self, radar: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
@@ -165,7 +203,11 @@ class RadarBlockEncoder(nn.Module):
         padded = torch.cat([radar, radar.new_zeros(b, a, r, 1)], dim=-1)
         blocks = padded[..., self.freq_index].permute(0, 3, 4, 1, 2)  # [B, L, F/L, A, R]
         weight = mask.to(radar.dtype)[:, None, None].expand(b, self.n_blocks, 1, a, r)
-        images = torch.cat([blocks, weight], dim=2).flatten(0, 1)  # [B*L, F/L + 1, A, R]
+        parts = [blocks, weight]
+        if self.roll_channels:
+            angle = torch.arange(r, device=radar.device, dtype=radar.dtype) * (2 * math.pi / r)
+            parts.append(torch.stack([angle.cos(), angle.sin()])[:, None].expand(b, self.n_blocks, 2, a, r))
+        images = torch.cat(parts, dim=2).flatten(0, 1)  # [B*L, F/L + 1 (+ 2), A, R]
         tokens = self.resnet(images).reshape(b, self.n_blocks, self.dim)
         count = weight.sum(dim=(-2, -1)).clamp(min=1.0)
         mean = (blocks * weight).sum(dim=(-2, -1)) / count

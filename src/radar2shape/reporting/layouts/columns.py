@@ -35,6 +35,7 @@ MODEL_TITLES = {
     "radar2shape_paper": "Radar2Shape, as in the paper",
     "radar2shape_s1slow": "Radar2Shape, slow-decay Stage 1",
     "radar2shape_s1wide": "Radar2Shape, wide Stage 1",
+    "radar2shape_circ": "Radar2Shape, circular roll padding",
     "diffusion_sdf": "Diffusion-SDF",
     "tmnet": "TMNet",
     "list": "LIST",
