@@ -9,6 +9,11 @@ its radar consistency is computed (``radar2shape.metrics.consistency``: re-simul
 in power over the observed cells after one gain). The report gives the Spearman rank correlation of
 consistency with IoU (negative = a lower residual goes with a better reconstruction), per
 observability, and the per-shape values.
+
+    python scripts/confidence_check.py --scores reports/GRID/scores/RUN.csv ... --out REPORT.md
+
+reads the same from per-shape score files of runs whose evaluator had the ``ConsistencyScorer``
+(columns ``iou`` and ``radar_consistency``) instead of running a model.
 """
 
 from __future__ import annotations
@@ -25,16 +30,49 @@ import numpy as np
 
 def parse_args(argv):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ckpt", type=Path, required=True, help="a RadarDiffusion checkpoint")
-    parser.add_argument("--data", type=Path, required=True)
+    parser.add_argument("--ckpt", type=Path, help="a RadarDiffusion checkpoint")
+    parser.add_argument("--data", type=Path)
+    parser.add_argument("--scores", type=Path, nargs="+", help="per-shape score files instead of --ckpt/--data")
     parser.add_argument("--observability", nargs="+", default=["full"], choices=["full", "partial"])
     parser.add_argument("--limit", type=int, default=0, help="first N test records (0: all)")
     parser.add_argument("--out", type=Path, required=True)
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    if (args.scores is None) == (args.ckpt is None or args.data is None):
+        parser.error("give --ckpt and --data, or --scores")
+    return args
+
+
+def from_scores(paths: list[Path], out: Path) -> int:
+    """The Spearman correlation of logged consistency with IoU, per score file."""
+    import csv
+
+    from scipy.stats import spearmanr
+
+    from radar2shape.atomic import write_text_atomic
+
+    lines = ["# Radar consistency against IoU, from per-shape test scores", ""]
+    for path in paths:
+        if not path.is_file():
+            raise SystemExit(f"error: {path}: not found (expected a per-shape score file, scores/<run>.csv)")
+        with path.open() as handle:
+            rows = list(csv.DictReader(handle))
+        if not rows or "radar_consistency" not in rows[0]:
+            raise SystemExit(f"error: {path}: no radar_consistency column (test the run with the ConsistencyScorer)")
+        pairs = [(float(r["radar_consistency"]), float(r["iou"])) for r in rows]
+        pairs = [p for p in pairs if all(np.isfinite(p))]
+        rho, p = spearmanr(*zip(*pairs))
+        lines.append(f"- `{path}`: Spearman(consistency, IoU) = {rho:+.3f} (p = {p:.2g}) over {len(pairs)} shapes; "
+                     f"mean IoU {np.mean([b for _, b in pairs]):.3f}, mean consistency {np.mean([a for a, _ in pairs]):.3f}")
+        print(lines[-1])
+    write_text_atomic(out, "\n".join(lines + ["", "`scripts/confidence_check.py --scores`", ""]))
+    print(f"wrote {out}")
+    return 0
 
 
 def main(argv=None) -> int:
     args = parse_args(argv)
+    if args.scores:
+        return from_scores(args.scores, args.out)
     import torch
     from scipy.stats import spearmanr
 

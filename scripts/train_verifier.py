@@ -78,6 +78,27 @@ def collect(model, dm, split, indices, k, cache: Path, keep_latents: set[int]) -
     return store
 
 
+SIZES = ((64, 400), (64, 1000), (128, 1000))  # (hidden width, full-batch epochs) tried
+FOLDS = 4
+
+
+def cross_validated_gain(features, iou, hidden: int, epochs: int) -> float:
+    """Mean IoU gain of the fitted verifier's pick over the first sample on held-out folds of the fit shapes."""
+    import torch
+
+    from radar2shape.models.verifier import fit_verifier
+
+    fold = torch.arange(len(features)) % FOLDS
+    gains = []
+    for k in range(FOLDS):
+        verifier = fit_verifier(features[fold != k], iou[fold != k], hidden=hidden, epochs=epochs)
+        with torch.no_grad():
+            pick = verifier(features[fold == k]).argmax(1)
+        held = iou[fold == k]
+        gains.append(float((held.gather(1, pick[:, None]).squeeze(1) - held[:, 0]).mean()))
+    return sum(gains) / FOLDS
+
+
 def mesh_iou(model, latents, item) -> float:
     """IoU of the mesh of the mean SDF of ``latents [K, L, Z]`` as the evaluator scores it."""
     from radar2shape.metrics.scoring import score_reconstruction
@@ -117,10 +138,16 @@ def main(argv=None) -> int:
     if args.verifier is not None:
         verifier = load_verifier(args.verifier, model.n_levels)
         trained = f"Verifier `{args.verifier}` (not refitted), scored on the last {args.eval_shapes} {split} records"
+        cv_lines = []
     else:
         features = torch.stack([store[i]["features"] for i in fit_ids])
         iou = torch.stack([store[i]["iou"] for i in fit_ids])
-        verifier = fit_verifier(features, iou)
+        cv = {size: cross_validated_gain(features, iou, *size) for size in SIZES}
+        hidden, epochs = max(cv, key=cv.get)
+        verifier = fit_verifier(features, iou, hidden=hidden, epochs=epochs)
+        cv_lines = ["", f"Size chosen by {FOLDS}-fold cross-validation on the fit shapes (mean gain of the pick over the first "
+                    "sample, decoded-SDF IoU): " + ", ".join(f"{h} wide x {e} epochs {g:+.4f}" for (h, e), g in cv.items())
+                    + f"; kept {hidden} x {epochs}."]
         trained = (f"Verifier trained on {args.fit_shapes} shapes ({split} split, first records), "
                    f"scored on {args.eval_shapes} others (last records)")
     names = feature_names(model.n_levels)
@@ -179,6 +206,7 @@ def main(argv=None) -> int:
               f"- confidence: Spearman(predicted IoU, IoU of the returned shape) = {rho_pred:+.3f} (p = {p_pred:.2g}); "
               f"Spearman(mean consensus of the K samples, IoU) = {rho_cons:+.3f} (p = {p_cons:.2g})",
               f"- features ({len(names)}): {', '.join(names)}",
+              *cv_lines,
               "", "Picking by one feature alone (its largest or smallest value among the K), scored by the decoded SDF's "
               f"sign on the occupancy points (no meshing; first sample {first_sdf:.3f}, oracle {oracle_sdf:.3f} the same way):",
               "", "| feature | largest | smallest |", "|---|---|---|",

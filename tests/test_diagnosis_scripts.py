@@ -68,3 +68,22 @@ def test_paired_scores_name_a_file_without_score_columns(tmp_path):
     with pytest.raises(SystemExit) as exc:
         paired_scores.read_scores(bad)
     assert str(exc.value).startswith(f"error: {bad}: expected columns") and "fscore_1pct" in str(exc.value)
+
+
+confidence_spec = importlib.util.spec_from_file_location("confidence_check", REPO / "scripts" / "confidence_check.py")
+confidence_check = importlib.util.module_from_spec(confidence_spec)
+confidence_spec.loader.exec_module(confidence_check)
+
+
+def test_confidence_from_scores_is_spearman_over_defined_shapes(tmp_path):
+    scores = tmp_path / "run.csv"
+    # consistency ranks 1, 2, 3, 4 against IoU ranks 4, 3, 1, 2 (one shape undefined): rho = 1 - 6*18/60 = -0.8
+    scores.write_text("index,iou,radar_consistency\n0,0.9,0.1\n1,0.8,0.2\n2,0.1,0.3\n3,0.2,0.4\n4,0.5,nan\n")
+    out = tmp_path / "confidence.md"
+    assert confidence_check.main(["--scores", str(scores), "--out", str(out)]) == 0
+    assert "Spearman(consistency, IoU) = -0.800" in out.read_text() and "over 4 shapes" in out.read_text()
+    plain = tmp_path / "plain.csv"
+    plain.write_text("index,iou\n0,0.5\n")
+    with pytest.raises(SystemExit) as exc:
+        confidence_check.main(["--scores", str(plain), "--out", str(tmp_path / "x.md")])
+    assert str(exc.value).startswith(f"error: {plain}: no radar_consistency column") and not (tmp_path / "x.md").exists()
