@@ -1,13 +1,15 @@
 """Benchmark: training shapes/s per model, reference kernels against the current (fast) path, in one run.
 
-    python bench/train_throughput.py [--models stage1 stage2 tmnet list] [--threads 2] [--bf16]
+    python bench/train_throughput.py [--models stage1 stage2 tmnet list] [--threads 2] [--bf16] [--device cuda]
 
 One step = the model's training losses, backward, the model's own optimizer (``configure_optimizers``)
 on a synthetic batch at the medium configs (batch 16, 2,048 surface + 4,096 SDF points per shape,
 radar 32 x 32 x 64): timing needs no dataset, and data loading is measured in bench/profile_steps.py.
 Both paths start from the same weights and batch; the reference path is
 ``radar2shape.nn.kernels.reference_path()`` (the ops before the fast forms, the per-parameter
-optimizer). ``--bf16`` adds the opt-in bfloat16 autocast path. The paths take turns for
+optimizer). ``--bf16`` adds the opt-in bfloat16 autocast path (on a GPU: ``torch.autocast`` in bfloat16, what the
+trainer's ``precision: bf16-mixed`` runs). ``--device cuda`` times on the GPU (synchronised; the
+CPU-second column is then the host's time). The paths take turns for
 ``--rounds`` rounds and each keeps its best round: on a shared, oversubscribed machine a round's
 time depends on what else ran then far more than on the path. Prints shapes/s by wall clock and
 per CPU-second (process time) and the ratios; docs/throughput.md.
@@ -88,9 +90,16 @@ def optimizer_of(model: torch.nn.Module) -> torch.optim.Optimizer:
     return configured["optimizer"] if isinstance(configured, dict) else configured
 
 
+def autocast(device: torch.device) -> contextlib.AbstractContextManager:
+    """The model's CPU autocast switch; on a GPU, Lightning's bf16-mixed autocast when the bf16 path is on."""
+    if device.type == "cpu":
+        return kernels.training_autocast("cpu")
+    return torch.autocast(device.type, dtype=torch.bfloat16, enabled=kernels.bf16_training())
+
+
 def training_step(model: torch.nn.Module, optimizer: torch.optim.Optimizer, batch: dict) -> float:
     """One step as ``ReconstructionModel.training_step`` runs it, less Lightning's logging."""
-    with kernels.training_autocast("cpu"):
+    with autocast(model.device):
         loss = model.losses(batch)["loss"]
     optimizer.zero_grad(set_to_none=True)
     loss.backward()
@@ -110,10 +119,25 @@ class Runner:
     def time(self, steps: int) -> tuple[float, float]:
         """(wall, CPU) seconds per step over ``steps`` steps."""
         with path(self.name):
+            synchronise(self.model.device)
             wall, cpu = time.perf_counter(), time.process_time()
             for _ in range(steps):
                 training_step(self.model, self.optimizer, self.batch)
+            synchronise(self.model.device)
             return (time.perf_counter() - wall) / steps, (time.process_time() - cpu) / steps
+
+
+def synchronise(device: torch.device) -> None:
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+
+
+def to_device(model: torch.nn.Module, batch: dict, device: torch.device) -> tuple[torch.nn.Module, dict]:
+    """Model and batch on ``device`` (Stage 2's cached latents too, as Lightning's fit moves them)."""
+    model = model.to(device)
+    if hasattr(model, "_train_latents"):
+        model._train_latents = {k: v.to(device) for k, v in model._train_latents.items()}
+    return model, {k: v.to(device) for k, v in batch.items()}
 
 
 @contextlib.contextmanager
@@ -134,14 +158,18 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=0, help="timed steps per path (0: a per-model default)")
     parser.add_argument("--rounds", type=int, default=2, help="rounds in which the paths take turns")
     parser.add_argument("--bf16", action="store_true", help="also time the opt-in bfloat16 autocast path")
+    parser.add_argument("--device", default="cpu", help="cpu (default) or cuda")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    paths = ["reference", "fast"] + (["bf16"] if args.bf16 and kernels.cpu_has_bf16() else [])
-    print(f"training throughput, batch {BATCH}, medium configs, {torch.get_num_threads()} threads, best of "
+    device = torch.device(args.device)
+    bf16 = args.bf16 and (device.type != "cpu" or kernels.cpu_has_bf16())
+    paths = ["reference", "fast"] + (["bf16"] if bf16 else [])
+    where = torch.cuda.get_device_name(device) if device.type == "cuda" else f"{torch.get_num_threads()} threads"
+    print(f"training throughput, batch {BATCH}, medium configs, {where}, best of "
           f"{args.rounds} rounds (shapes/s: wall | per CPU-second; ratio = path / reference)")
     for name in args.models:
-        model, batch = build(name)
-        steps = args.steps or STEPS[name]
+        model, batch = to_device(*build(name), device)
+        steps = args.steps or STEPS[name] * (10 if device.type == "cuda" else 1)
         runners = [Runner(model, batch, p) for p in paths]
         rounds = [[r.time(steps) for r in runners] for _ in range(args.rounds)]
         times = {p: tuple(min(rnd[i][k] for rnd in rounds) for k in (0, 1)) for i, p in enumerate(paths)}

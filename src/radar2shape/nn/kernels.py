@@ -54,6 +54,11 @@ def set_bf16_training(enabled: bool) -> None:
     _BF16_TRAINING = bool(enabled)
 
 
+def bf16_training() -> bool:
+    """Whether the bfloat16 training opt-in is on."""
+    return _BF16_TRAINING
+
+
 @functools.lru_cache(maxsize=1)
 def cpu_has_bf16() -> bool:
     """True when this CPU has native bfloat16 dot products (AVX512-BF16 or AMX), where autocast pays."""

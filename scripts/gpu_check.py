@@ -1,0 +1,162 @@
+"""GPU check: training throughput and a few minutes of the medium Stage 1 and Stage 2 on an accelerator.
+
+    python scripts/gpu_check.py --out DIR [--minutes 4] [--data data/parts_medium] [--workers 16] [--fit-args "..."]
+
+What it runs, in order:
+1. ``build-data`` of ``conf/data/parts_medium.yaml`` into ``--data`` when that holds no manifest;
+2. ``bench/train_throughput.py --device DEVICE --bf16`` (shapes/s of each path) -> ``DIR/bench.txt``;
+3. side by side on the one device, each for ``--minutes`` of wall time: Stage 1 as the table1-medium
+   grid trains it, in float32 and in ``bf16-mixed``, and Stage 2 (the grid's ``radar2shape-full-seed0``
+   settings) in ``bf16-mixed`` on the Stage 1 given by ``--stage1-ckpt`` (default: the one inside the
+   shipped model, extracted). ``conf/trainer/gpu.yaml`` is the trainer layer.
+While they run, the wall time of each new validation row is noted, so ``DIR/gpu_check.md`` can give
+validation IoU against steps and seconds, and the step and second at which it first reaches the CPU
+run's final validation IoU (``reports/table1-medium/learning_curves.md``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import re
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO / "src"), str(REPO)]
+
+CPU_CURVES = REPO / "reports/table1-medium/learning_curves.md"
+CPU_FIT_SECONDS = {"radar2shape_stage1": 3106.0}  # reports/table1-medium (runs table: 60 epochs, 1 thread)
+MEDIUM = ["--config", "conf/callbacks/shape_metrics.yaml", "--config", "conf/experiment/table1_medium.yaml"]
+STAGE1 = ["--model", "conf/model/sdf_vae_medium.yaml", "--trainer.max_epochs", "60",
+          "--data.init_args.points.train.surface", "1024", "--data.init_args.points.train.sdf", "2048"]
+STAGE2 = ["--model", "conf/model/radar_diffusion_medium.yaml", "--trainer.max_epochs", "80",
+          "--data.init_args.observability", "full", "--trainer.check_val_every_n_epoch", "10", "--seed_everything", "0"]
+
+
+def cpu_final(run: str) -> tuple[int, float]:
+    """(step, val IoU) of the last validation row of ``run`` in the committed CPU learning curves."""
+    section = CPU_CURVES.read_text().split(f"## {run}\n", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"^\| (\d+) \| (\d+) \| ([0-9.]+) \|", section, flags=re.M)
+    return int(rows[-1][1]), float(rows[-1][2])
+
+
+def extract_stage1(stage2_ckpt: Path, out: Path) -> Path:
+    """A Stage-1 (SDFVAE) checkpoint holding the Stage 1 inside a Stage-2 checkpoint."""
+    import lightning
+    import torch
+
+    ckpt = torch.load(stage2_ckpt, map_location="cpu", weights_only=True)
+    state = {k.removeprefix("stage1."): v for k, v in ckpt["state_dict"].items() if k.startswith("stage1.")}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    torch.save({"state_dict": state, "hyper_parameters": dict(ckpt["hyper_parameters"]["stage1_hparams"]),
+                "pytorch-lightning_version": lightning.__version__}, out)
+    return out
+
+
+def fit_command(name: str, precision: str, args: argparse.Namespace, stage1_ckpt: Path) -> list[str]:
+    python = [sys.executable, "-c", "from radar2shape.cli import entrypoint; entrypoint()", "fit"]
+    model = STAGE1 if name.startswith("stage1") else STAGE2 + ["--model.init_args.stage1_ckpt", str(stage1_ckpt)]
+    seconds = int(args.minutes * 60)
+    trainer = ["--trainer.precision", precision, "--trainer.max_time", f"00:00:{seconds // 60:02d}:{seconds % 60:02d}",
+               "--trainer.default_root_dir", str(args.out / "runs" / name),
+               "--trainer.accelerator", args.accelerator, "--data.init_args.root", str(args.data),
+               "--data.init_args.num_workers", str(args.loader_workers)]
+    return python + ["--config", "conf/trainer/gpu.yaml"] + MEDIUM + model + trainer + args.extra
+
+
+def validation_rows(run_dir: Path) -> list[dict]:
+    rows = []
+    for path in run_dir.glob("**/metrics.csv"):
+        with open(path, newline="") as handle:
+            rows += [r for r in csv.DictReader(handle) if r.get("val/iou_mean")]
+    return rows
+
+
+def watch(runs: dict[str, subprocess.Popen], dirs: dict[str, Path], start: float) -> dict[str, list[tuple]]:
+    """Poll each run's metrics.csv until every run exits; (epoch, step, IoU, seconds) per validation row."""
+    seen: dict[str, dict] = {name: {} for name in runs}
+    while True:
+        done = all(p.poll() is not None for p in runs.values())
+        for name in runs:
+            for row in validation_rows(dirs[name]):
+                seen[name].setdefault(int(row["step"]), (int(row["epoch"]), int(row["step"]),
+                                                         float(row["val/iou_mean"]), time.perf_counter() - start))
+        if done:
+            return {name: sorted(rows.values(), key=lambda r: r[1]) for name, rows in seen.items()}
+        time.sleep(2)
+
+
+def summary(bench: str, curves: dict[str, list[tuple]], codes: dict[str, int], args: argparse.Namespace) -> str:
+    lines = ["# Medium Stage 1 / Stage 2 on a GPU", "",
+             f"`python scripts/gpu_check.py --minutes {args.minutes:g}` (scripts/gpu_check.py). Device: {args.device_name}. "
+             "The three fits ran side by side on the one device, each with its own data loader "
+             f"({args.loader_workers} workers).", "", "## Training throughput (bench/train_throughput.py, synthetic medium batches)",
+             "", "```", bench.strip(), "```", ""]
+    refs = {"stage1": cpu_final("radar2shape_stage1"), "stage2": cpu_final("radar2shape-full-seed0")}
+    for name, rows in curves.items():
+        ref_step, ref_iou = refs[name.split("-")[0]]
+        lines += [f"## {name} (exit {codes[name]})", "",
+                  f"CPU run's final validation IoU: {ref_iou:.4f} at step {ref_step}.", "",
+                  "| epoch | step | val/iou_mean | seconds since start |", "|---|---|---|---|"]
+        lines += [f"| {e} | {s} | {iou:.4f} | {sec:.0f} |" for e, s, iou, sec in rows]
+        passed = next((r for r in rows if r[2] >= ref_iou), None)
+        lines += ["", f"Reaches the CPU final at step {passed[1]}, {passed[3]:.0f} s after start." if passed
+                  else "Does not reach the CPU final within the run.", ""]
+    return "\n".join(lines)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--minutes", type=float, default=4.0, help="wall time of each fit")
+    parser.add_argument("--data", type=Path, default=REPO / "data/parts_medium")
+    parser.add_argument("--workers", type=int, default=16, help="build-data workers")
+    parser.add_argument("--loader-workers", type=int, default=4, help="DataLoader workers of each fit")
+    parser.add_argument("--accelerator", default="gpu")
+    parser.add_argument("--stage1-ckpt", type=Path, default=None)
+    parser.add_argument("--runs", nargs="+", default=["stage1-fp32", "stage1-bf16", "stage2-bf16"])
+    parser.add_argument("--bench-args", default="--models stage1 stage2 tmnet list", help="one string")
+    parser.add_argument("--fit-args", default="", help="more arguments of every fit, one string")
+    args = parser.parse_args()
+    args.extra = shlex.split(args.fit_args)
+    os.chdir(REPO)
+    os.environ.setdefault("WANDB_MODE", "disabled")
+    os.environ["PYTHONPATH"] = os.pathsep.join([str(REPO / "src"), str(REPO), os.environ.get("PYTHONPATH", "")])
+    args.out.mkdir(parents=True, exist_ok=True)
+    import torch
+
+    device = "cuda" if args.accelerator == "gpu" else "cpu"
+    args.device_name = torch.cuda.get_device_name(0) if device == "cuda" else "CPU"
+    if not (args.data / "manifest.json").is_file():
+        subprocess.run([sys.executable, "-c", "from radar2shape.cli import entrypoint; entrypoint()", "build-data",
+                        "--config", "conf/data/parts_medium.yaml", "--out", str(args.data),
+                        "--workers", str(args.workers), "--quiet"], check=True)
+    print(f"data ready {time.strftime('%X')}", flush=True)
+    bench = subprocess.run([sys.executable, "bench/train_throughput.py", "--device", device, "--bf16", *shlex.split(args.bench_args)],
+                           capture_output=True, text=True)
+    (args.out / "bench.txt").write_text(bench.stdout + bench.stderr[-3000:])
+    print(bench.stdout, bench.stderr[-2000:], flush=True)
+    stage1_ckpt = args.stage1_ckpt or extract_stage1(REPO / "src/radar2shape/weights/radar2shape_parts_medium.ckpt",
+                                                     args.out / "stage1_shipped.ckpt")
+    dirs = {name: args.out / "runs" / name for name in args.runs}
+    start = time.perf_counter()
+    runs = {}
+    for name in args.runs:
+        log = open(args.out / f"{name}.log", "w")
+        precision = "32" if name.endswith("fp32") else "bf16-mixed"
+        runs[name] = subprocess.Popen(fit_command(name, precision, args, stage1_ckpt), stdout=log, stderr=subprocess.STDOUT)
+    curves = watch(runs, dirs, start)
+    codes = {name: p.returncode for name, p in runs.items()}
+    text = summary(bench.stdout, curves, codes, args)
+    (args.out / "gpu_check.md").write_text(text)
+    print(text)
+    return 0 if all(c == 0 for c in codes.values()) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
