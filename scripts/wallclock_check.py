@@ -1,15 +1,17 @@
-"""GPU check: training throughput and a few minutes of the medium Stage 1 and Stage 2 on an accelerator.
+"""Validation IoU against wall time: the medium Stage 1 and Stage 2 for a few minutes, on a GPU or a CPU.
 
-    python scripts/gpu_check.py --out DIR [--minutes 4] [--data data/parts_medium] [--workers 16] [--fit-args "..."]
+    python scripts/wallclock_check.py --out DIR [--minutes 4] [--data data/parts_medium] [--workers 16] [--fit-args "..."]
 
 What it runs, in order:
 1. ``build-data`` of ``conf/data/parts_medium.yaml`` into ``--data`` when that holds no manifest;
 2. ``bench/train_throughput.py --device DEVICE --bf16`` (shapes/s of each path) -> ``DIR/bench.txt``;
-3. side by side on the one device, each for ``--minutes`` of wall time: Stage 1 as the table1-medium
+3. side by side on the one device (``--sequential``: one after another, for a CPU), each for
+   ``--minutes`` of wall time: Stage 1 as the table1-medium
    grid trains it, in float32 and in ``bf16-mixed``, and Stage 2 (the grid's ``radar2shape-full-seed0``
    settings) in ``bf16-mixed`` on the Stage 1 given by ``--stage1-ckpt`` (default: the one inside the
-   shipped model, extracted). ``conf/trainer/gpu.yaml`` is the trainer layer.
-While they run, the wall time of each new validation row is noted, so ``DIR/gpu_check.md`` can give
+   shipped model, extracted). ``conf/trainer/gpu.yaml`` is the trainer layer (``--accelerator cpu``
+   runs it on the CPU). Run names end in ``fp32`` (float32) or ``bf16`` (``bf16-mixed``).
+While they run, the wall time of each new validation row is noted, so ``DIR/wallclock_check.md`` can give
 validation IoU against steps and seconds, and the step and second at which it first reaches the CPU
 run's final validation IoU (``reports/table1-medium/learning_curves.md``).
 """
@@ -92,11 +94,12 @@ def watch(runs: dict[str, subprocess.Popen], dirs: dict[str, Path], start: float
 
 
 def summary(bench: str, curves: dict[str, list[tuple]], codes: dict[str, int], args: argparse.Namespace) -> str:
-    lines = ["# Medium Stage 1 / Stage 2 on a GPU", "",
-             f"`python scripts/gpu_check.py --minutes {args.minutes:g}` (scripts/gpu_check.py). Device: {args.device_name}. "
-             "The three fits ran side by side on the one device, each with its own data loader "
-             f"({args.loader_workers} workers).", "", "## Training throughput (bench/train_throughput.py, synthetic medium batches)",
-             "", "```", bench.strip(), "```", ""]
+    lines = [f"# Medium Stage 1 / Stage 2 on {args.device_name}", "",
+             f"`python scripts/wallclock_check.py {' '.join(args.argv)}` (scripts/wallclock_check.py). Device: {args.device_name}. "
+             + ("The fits ran one after another" if args.sequential else "The fits ran side by side on the one device")
+             + f", each with its own data loader ({args.loader_workers} workers).", ""]
+    if bench:
+        lines += ["## Training throughput (bench/train_throughput.py, synthetic medium batches)", "", "```", bench.strip(), "```", ""]
     refs = {"stage1": cpu_final("radar2shape_stage1"), "stage2": cpu_final("radar2shape-full-seed0")}
     for name, rows in curves.items():
         ref_step, ref_iou = refs[name.split("-")[0]]
@@ -120,10 +123,11 @@ def main() -> int:
     parser.add_argument("--accelerator", default="gpu")
     parser.add_argument("--stage1-ckpt", type=Path, default=None)
     parser.add_argument("--runs", nargs="+", default=["stage1-fp32", "stage1-bf16", "stage2-bf16"])
-    parser.add_argument("--bench-args", default="--models stage1 stage2 tmnet list", help="one string")
+    parser.add_argument("--bench-args", default="--models stage1 stage2 tmnet list", help="one string; '' skips the bench")
+    parser.add_argument("--sequential", action="store_true", help="one fit after another (a CPU), each timed from its own start")
     parser.add_argument("--fit-args", default="", help="more arguments of every fit, one string")
     args = parser.parse_args()
-    args.extra = shlex.split(args.fit_args)
+    args.extra, args.argv = shlex.split(args.fit_args), [shlex.quote(a) for a in sys.argv[1:]]
     os.chdir(REPO)
     os.environ.setdefault("WANDB_MODE", "disabled")
     os.environ["PYTHONPATH"] = os.pathsep.join([str(REPO / "src"), str(REPO), os.environ.get("PYTHONPATH", "")])
@@ -131,29 +135,34 @@ def main() -> int:
     import torch
 
     device = "cuda" if args.accelerator == "gpu" else "cpu"
-    args.device_name = torch.cuda.get_device_name(0) if device == "cuda" else "CPU"
+    args.device_name = torch.cuda.get_device_name(0) if device == "cuda" else f"CPU, {torch.get_num_threads()} threads"
     if not (args.data / "manifest.json").is_file():
         subprocess.run([sys.executable, "-c", "from radar2shape.cli import entrypoint; entrypoint()", "build-data",
                         "--config", "conf/data/parts_medium.yaml", "--out", str(args.data),
                         "--workers", str(args.workers), "--quiet"], check=True)
     print(f"data ready {time.strftime('%X')}", flush=True)
-    bench = subprocess.run([sys.executable, "bench/train_throughput.py", "--device", device, "--bf16", *shlex.split(args.bench_args)],
-                           capture_output=True, text=True)
-    (args.out / "bench.txt").write_text(bench.stdout + bench.stderr[-3000:])
-    print(bench.stdout, bench.stderr[-2000:], flush=True)
+    bench_text = ""
+    if args.bench_args:
+        bench = subprocess.run([sys.executable, "bench/train_throughput.py", "--device", device, "--bf16",
+                                *shlex.split(args.bench_args)], capture_output=True, text=True)
+        bench_text = bench.stdout
+        (args.out / "bench.txt").write_text(bench.stdout + bench.stderr[-3000:])
+        print(bench.stdout, bench.stderr[-2000:], flush=True)
     stage1_ckpt = args.stage1_ckpt or extract_stage1(REPO / "src/radar2shape/weights/radar2shape_parts_medium.ckpt",
                                                      args.out / "stage1_shipped.ckpt")
     dirs = {name: args.out / "runs" / name for name in args.runs}
-    start = time.perf_counter()
-    runs = {}
-    for name in args.runs:
-        log = open(args.out / f"{name}.log", "w")
-        precision = "32" if name.endswith("fp32") else "bf16-mixed"
-        runs[name] = subprocess.Popen(fit_command(name, precision, args, stage1_ckpt), stdout=log, stderr=subprocess.STDOUT)
-    curves = watch(runs, dirs, start)
-    codes = {name: p.returncode for name, p in runs.items()}
-    text = summary(bench.stdout, curves, codes, args)
-    (args.out / "gpu_check.md").write_text(text)
+    groups = [[name] for name in args.runs] if args.sequential else [args.runs]
+    curves, codes = {}, {}
+    for group in groups:
+        start, runs = time.perf_counter(), {}
+        for name in group:
+            log = open(args.out / f"{name}.log", "w")
+            precision = "32" if name.endswith("fp32") else "bf16-mixed"
+            runs[name] = subprocess.Popen(fit_command(name, precision, args, stage1_ckpt), stdout=log, stderr=subprocess.STDOUT)
+        curves.update(watch(runs, dirs, start))
+        codes.update({name: p.returncode for name, p in runs.items()})
+    text = summary(bench_text, curves, codes, args)
+    (args.out / "wallclock_check.md").write_text(text)
     print(text)
     return 0 if all(c == 0 for c in codes.values()) else 1
 
