@@ -13,7 +13,8 @@ occupancy points (SDF sign of the decoded latent). The first ``--fit-shapes`` tr
 verifier; the last ``--eval-shapes`` (disjoint) score it: each selection rule's candidate is meshed
 and scored as the evaluator scores (marching cubes at the model's resolution, IoU by containment),
 paired by shape: the first sample, the K-sample mean SDF (what `reconstruct --samples K` returns),
-the most-agreed candidate (consensus, no learning), the verifier's choice, the oracle best of K.
+the most-agreed candidate (consensus, no learning), the verifier's choice, the mean SDF of its 2 and
+3 best-scored candidates, the oracle best of K.
 Collection is cached per shape in ``--cache`` and resumes.
 
 With ``--verifier FILE --fit-shapes 0`` a trained verifier is only scored, e.g. on another family's
@@ -78,6 +79,7 @@ def collect(model, dm, split, indices, k, cache: Path, keep_latents: set[int]) -
     return store
 
 
+TOP = (2, 3)  # besides the single pick: the mean SDF of the verifier's best 2 and best 3
 SIZES = ((64, 400), (64, 1000), (128, 1000))  # (hidden width, full-batch epochs) tried
 FOLDS = 4
 
@@ -164,6 +166,9 @@ def main(argv=None) -> int:
                  "verifier": int(predicted.argmax()), "oracle": int(cand_iou.argmax())}
         scored = {rule: mesh_iou(model, latents[j:j + 1], item) for rule, j in picks.items()}
         scored["mean_of_k"] = mesh_iou(model, latents, item)
+        ranked = predicted.argsort(descending=True)
+        for m in TOP:  # the mean SDF of the verifier's m best-scored candidates
+            scored[f"verifier_top{m}"] = mesh_iou(model, latents[ranked[:m]], item)
         rows.append({"record": dm.records(split).record_ids[i],
                      "class": dm.class_names[dm.manifest["labels"][split][i]],
                      **{f"iou_{rule}": value for rule, value in scored.items()},
@@ -185,7 +190,7 @@ def main(argv=None) -> int:
                            for n, name in enumerate(names) if not name.startswith(("mean_", "log_mean", "log_denoise_0"))]
 
     first = column("iou_first")
-    rules = ["first", "mean_of_k", "consensus", "verifier", "oracle"]
+    rules = ["first", "mean_of_k", "consensus", "verifier", *(f"verifier_top{m}" for m in TOP), "oracle"]
     lines = [f"# Choosing among K = {args.candidates} Stage-2 samples: {args.ckpt}", "",
              f"{trained} of `{args.data}`, full observability; every IoU below meshed and scored as the "
              "evaluator does, paired by shape (gain: mean and standard error of the per-shape difference).", "",

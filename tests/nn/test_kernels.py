@@ -152,3 +152,24 @@ def test_bf16_autocast_is_opt_in():
             assert not torch.is_autocast_enabled("cpu")
     finally:
         kernels.set_bf16_training(False)
+
+
+def test_training_step_keeps_the_trainers_autocast():
+    """``precision: bf16-mixed`` opens autocast around the step; the model's own switch, off, must not close it."""
+    from radar2shape.models.base import ReconstructionModel
+
+    seen = []
+
+    class Probe(ReconstructionModel):
+        def losses(self, batch):
+            seen.append((torch.is_autocast_enabled("cpu"), (batch["x"] @ batch["x"]).dtype))
+            return {"loss": batch["x"].sum()}
+
+        def _log_losses(self, *args):
+            pass
+
+    x = torch.ones(4, 4)
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        Probe().training_step({"x": x}, 0)
+    Probe().training_step({"x": x}, 0)
+    assert seen == [(True, torch.bfloat16), (False, torch.float32)]

@@ -70,6 +70,11 @@ def cpu_has_bf16() -> bool:
 
 
 def training_autocast(device_type: str) -> contextlib.AbstractContextManager:
-    """The autocast context of one training step: bfloat16 on a bf16-capable CPU when opted in, else none."""
-    enabled = _FAST and _BF16_TRAINING and device_type == "cpu" and cpu_has_bf16()
-    return torch.autocast("cpu", dtype=torch.bfloat16, enabled=enabled)
+    """The autocast context of one training step: bfloat16 on a bf16-capable CPU when opted in, else none.
+
+    "None" is a null context, not ``autocast(enabled=False)``: that would switch off an autocast the
+    trainer opened around the step (``precision: bf16-mixed`` on a CPU).
+    """
+    if _FAST and _BF16_TRAINING and device_type == "cpu" and cpu_has_bf16():
+        return torch.autocast("cpu", dtype=torch.bfloat16)
+    return contextlib.nullcontext()
