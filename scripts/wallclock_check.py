@@ -97,7 +97,7 @@ def summary(bench: str, curves: dict[str, list[tuple]], codes: dict[str, int], a
     lines = [f"# Medium Stage 1 / Stage 2 on {args.device_name}", "",
              f"`python scripts/wallclock_check.py {' '.join(args.argv)}` (scripts/wallclock_check.py). Device: {args.device_name}. "
              + ("The fits ran one after another" if args.sequential else "The fits ran side by side on the one device")
-             + f", each with its own data loader ({args.loader_workers} workers).", ""]
+             + f", each with its own data loader ({args.loader_workers} worker processes).", ""]
     if bench:
         lines += ["## Training throughput (bench/train_throughput.py, synthetic medium batches)", "", "```", bench.strip(), "```", ""]
     refs = {"stage1": cpu_final("radar2shape_stage1"), "stage2": cpu_final("radar2shape-full-seed0")}

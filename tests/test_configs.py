@@ -187,6 +187,18 @@ def test_experiment_layers_parse_with_their_own_trainer(name, capsys):
                                "radar2shape.metrics.ReconstructionEvaluator"]
 
 
+def test_cpu_bf16_layer_turns_on_autocast_over_the_cpu_trainer(capsys):
+    """conf/trainer/cpu_bf16.yaml after cpu.yaml: Lightning's bf16-mixed on the CPU, the rest of cpu.yaml kept."""
+    files = layers("sdf_vae_parts_cpu")
+    assert files[0].endswith("conf/trainer/cpu.yaml")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["fit", f"--config={files[0]}", f"--config={CONF / 'trainer' / 'cpu_bf16.yaml'}",
+              *(f"--config={c}" for c in files[1:]), "--print_config"])
+    assert exit_info.value.code in (0, None)
+    printed = yaml.safe_load(capsys.readouterr().out)["trainer"]
+    assert (printed["precision"], printed["accelerator"], printed["log_every_n_steps"]) == ("bf16-mixed", "cpu", 5)
+
+
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_FITS else n
                                   for n in EXPERIMENTS])
 def test_experiment_fits_one_step_and_saves_a_loadable_checkpoint(name, runs):
