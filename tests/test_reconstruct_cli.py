@@ -256,6 +256,13 @@ def test_candidates_return_the_verified_sample(checkpoint, tmp_path, capsys):
     assert f"no verifier beside model.ckpt: expected {default_verifier_path(copy)}" in err and "\n" not in err
     shutil.copy(path, default_verifier_path(copy))
     assert run(str(copy), radar, tmp_path / "m2.obj", "--candidates", "2", "--steps", "3") == 0
+    # a verifier trained for another K is refused in one line, before any sampling
+    save_verifier(verifier, path, model.n_levels, {"candidates": 8})
+    capsys.readouterr()
+    assert run(checkpoint, radar, tmp_path / "m3.obj", "--candidates", "3", "--verifier", str(path)) == 2
+    err = capsys.readouterr().err.strip()
+    assert "trained to choose among K = 8 candidates, not 3" in err and "\n" not in err
+    assert not (tmp_path / "m3.obj").exists()
 
 
 @pytest.mark.parametrize("extra, message", [

@@ -110,6 +110,11 @@ def test_verifier_file_round_trip_and_mismatch(tmp_path, model):
         assert torch.equal(loaded(features), verifier(features))
     with pytest.raises(UserInputError, match="do not match this model"):
         load_verifier(path, model.n_levels + 1)
+    # trained for K = 8: the same K loads, another K is refused (its features are relative to the K)
+    save_verifier(verifier, path, model.n_levels, {"candidates": 8})
+    assert isinstance(load_verifier(path, model.n_levels, 8), type(verifier))
+    with pytest.raises(UserInputError, match="trained to choose among K = 8 candidates, not 16; use --candidates 8"):
+        load_verifier(path, model.n_levels, 16)
     (tmp_path / "junk.pt").write_bytes(b"not a file")
     with pytest.raises(UserInputError, match="junk.pt: not a readable verifier file"):
         load_verifier(tmp_path / "junk.pt", model.n_levels)

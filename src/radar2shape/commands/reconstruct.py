@@ -272,7 +272,7 @@ def load_candidate_verifier(args: argparse.Namespace, checkpoint: Path, model):
         where = "--verifier" if args.verifier else f"no verifier beside {checkpoint.name}: expected"
         raise UserInputError(f"{where} {path} (scripts/train_verifier.py trains one for a model); "
                              "leave out --candidates to reconstruct without one")
-    return load_verifier(path, model.n_levels)
+    return load_verifier(path, model.n_levels, args.candidates)
 
 
 def _checkpoint_path(ckpt: Path | None) -> Path:

@@ -144,8 +144,13 @@ def save_verifier(verifier: Verifier, path: Path, n_levels: int, about: dict) ->
         torch.save(payload, tmp)
 
 
-def load_verifier(path: Path, n_levels: int) -> Verifier:
-    """A verifier file for a model with ``n_levels`` latent levels; one clear error when it does not fit."""
+def load_verifier(path: Path, n_levels: int, candidates: int | None = None) -> Verifier:
+    """A verifier file for a model with ``n_levels`` latent levels; one clear error when it does not fit.
+
+    ``candidates``: the K it will choose among, refused when the file was trained on another K. Its
+    features are relative to the K siblings, so the choice does not carry over: the shipped verifier
+    (K = 8) used on K = 16 fell below the first sample (docs/metrics.md).
+    """
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except (OSError, RuntimeError, EOFError, pickle.UnpicklingError) as error:
@@ -156,6 +161,11 @@ def load_verifier(path: Path, n_levels: int) -> Verifier:
     if payload["features"] != names or payload["noise_levels"] != list(NOISE_LEVELS):
         raise UserInputError(f"{path}: its features ({len(payload['features'])}) do not match this model's "
                              f"({len(names)}, {n_levels} latent levels)")
+    trained_k = (payload.get("about") or {}).get("candidates")
+    if candidates is not None and trained_k is not None and int(trained_k) != candidates:
+        raise UserInputError(f"{path}: trained to choose among K = {trained_k} candidates, not {candidates}; "
+                             f"use --candidates {trained_k} or train one for K = {candidates} "
+                             f"(scripts/train_verifier.py --candidates {candidates})")
     verifier = Verifier(len(names), payload["hidden"])
     verifier.load_state_dict(payload["state_dict"])
     return verifier.eval()
