@@ -6,11 +6,11 @@ What it runs, in order:
 1. ``build-data`` of ``conf/data/parts_medium.yaml`` into ``--data`` when that holds no manifest;
 2. ``bench/train_throughput.py --device DEVICE --bf16`` (shapes/s of each path) -> ``DIR/bench.txt``;
 3. side by side on the one device (``--sequential``: one after another, for a CPU), each for
-   ``--minutes`` of wall time: Stage 1 as the table1-medium
-   grid trains it, in float32 and in ``bf16-mixed``, and Stage 2 (the grid's ``radar2shape-full-seed0``
-   settings) in ``bf16-mixed`` on the Stage 1 given by ``--stage1-ckpt`` (default: the one inside the
-   shipped model, extracted). ``conf/trainer/gpu.yaml`` is the trainer layer (``--accelerator cpu``
-   runs it on the CPU). Run names end in ``fp32`` (float32) or ``bf16`` (``bf16-mixed``).
+   ``--minutes`` of wall time: the table1-medium grid's own fits (``conf/grid/table1-medium.yaml``,
+   its trainer layer swapped for ``conf/trainer/gpu.yaml`` on a GPU), Stage 1 (``radar2shape_stage1``)
+   in float32 and in ``bf16-mixed``, and Stage 2 (``radar2shape-full-seed0``) in ``bf16-mixed`` on the
+   Stage 1 given by ``--stage1-ckpt`` (default: the one inside the shipped model, extracted). Run
+   names are ``stage1-`` or ``stage2-`` and end in ``fp32`` (float32) or ``bf16`` (``bf16-mixed``).
 While they run, the wall time of each new validation row is noted, so ``DIR/wallclock_check.md`` can give
 validation IoU against steps and seconds, and the step and second at which it first reaches the CPU
 run's final validation IoU (``reports/table1-medium/learning_curves.md``).
@@ -32,12 +32,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "src"), str(REPO)]
 
 CPU_CURVES = REPO / "reports/table1-medium/learning_curves.md"
-CPU_FIT_SECONDS = {"radar2shape_stage1": 3106.0}  # reports/table1-medium (runs table: 60 epochs, 1 thread)
-MEDIUM = ["--config", "conf/callbacks/shape_metrics.yaml", "--config", "conf/experiment/table1_medium.yaml"]
-STAGE1 = ["--model", "conf/model/sdf_vae_medium.yaml", "--trainer.max_epochs", "60",
-          "--data.init_args.points.train.surface", "1024", "--data.init_args.points.train.sdf", "2048"]
-STAGE2 = ["--model", "conf/model/radar_diffusion_medium.yaml", "--trainer.max_epochs", "80",
-          "--data.init_args.observability", "full", "--trainer.check_val_every_n_epoch", "10", "--seed_everything", "0"]
+CLI = [sys.executable, "-c", "from radar2shape.cli import entrypoint; entrypoint()"]
+GRID_RUNS = {"stage1": "radar2shape_stage1", "stage2": "radar2shape-full-seed0"}  # what each check repeats
 
 
 def cpu_final(run: str) -> tuple[int, float]:
@@ -61,14 +57,21 @@ def extract_stage1(stage2_ckpt: Path, out: Path) -> Path:
 
 
 def fit_command(name: str, precision: str, args: argparse.Namespace, stage1_ckpt: Path) -> list[str]:
-    python = [sys.executable, "-c", "from radar2shape.cli import entrypoint; entrypoint()", "fit"]
-    model = STAGE1 if name.startswith("stage1") else STAGE2 + ["--model.init_args.stage1_ckpt", str(stage1_ckpt)]
+    """The table1-medium grid's own fit of ``name``'s stage, on this device, for ``--minutes``."""
+    from radar2shape.sweep import load_grid
+
+    stage = name.split("-")[0]
+    run = next(r for r in load_grid("table1-medium").runs if r.name == GRID_RUNS[stage])
+    fit_args = run.args(args.out / "runs" / name)
+    if args.accelerator == "gpu":
+        fit_args = [a.replace("conf/trainer/cpu.yaml", "conf/trainer/gpu.yaml") for a in fit_args]
     seconds = int(args.minutes * 60)
-    trainer = ["--trainer.precision", precision, "--trainer.max_time", f"00:00:{seconds // 60:02d}:{seconds % 60:02d}",
-               "--trainer.default_root_dir", str(args.out / "runs" / name),
-               "--trainer.accelerator", args.accelerator, "--data.init_args.root", str(args.data),
-               "--data.init_args.num_workers", str(args.loader_workers)]
-    return python + ["--config", "conf/trainer/gpu.yaml"] + MEDIUM + model + trainer + args.extra
+    overrides = {"trainer.precision": precision, "trainer.max_time": f"00:00:{seconds // 60:02d}:{seconds % 60:02d}",
+                 "trainer.accelerator": args.accelerator, "data.init_args.root": args.data,
+                 "data.init_args.num_workers": args.loader_workers}
+    if stage == "stage2":
+        overrides["model.init_args.stage1_ckpt"] = stage1_ckpt
+    return CLI + ["fit", *fit_args, *(f"--{k}={v}" for k, v in overrides.items()), *args.extra]
 
 
 def validation_rows(run_dir: Path) -> list[dict]:
@@ -100,9 +103,8 @@ def summary(bench: str, curves: dict[str, list[tuple]], codes: dict[str, int], a
              + f", each with its own data loader ({args.loader_workers} worker processes).", ""]
     if bench:
         lines += ["## Training throughput (bench/train_throughput.py, synthetic medium batches)", "", "```", bench.strip(), "```", ""]
-    refs = {"stage1": cpu_final("radar2shape_stage1"), "stage2": cpu_final("radar2shape-full-seed0")}
     for name, rows in curves.items():
-        ref_step, ref_iou = refs[name.split("-")[0]]
+        ref_step, ref_iou = cpu_final(GRID_RUNS[name.split("-")[0]])
         lines += [f"## {name} (exit {codes[name]})", "",
                   f"CPU run's final validation IoU: {ref_iou:.4f} at step {ref_step}.", "",
                   "| epoch | step | val/iou_mean | seconds since start |", "|---|---|---|---|"]
@@ -137,8 +139,7 @@ def main() -> int:
     device = "cuda" if args.accelerator == "gpu" else "cpu"
     args.device_name = torch.cuda.get_device_name(0) if device == "cuda" else f"CPU, {torch.get_num_threads()} threads"
     if not (args.data / "manifest.json").is_file():
-        subprocess.run([sys.executable, "-c", "from radar2shape.cli import entrypoint; entrypoint()", "build-data",
-                        "--config", "conf/data/parts_medium.yaml", "--out", str(args.data),
+        subprocess.run(CLI + ["build-data", "--config", "conf/data/parts_medium.yaml", "--out", str(args.data),
                         "--workers", str(args.workers), "--quiet"], check=True)
     print(f"data ready {time.strftime('%X')}", flush=True)
     bench_text = ""
@@ -156,9 +157,10 @@ def main() -> int:
     for group in groups:
         start, runs = time.perf_counter(), {}
         for name in group:
-            log = open(args.out / f"{name}.log", "w")
             precision = "32" if name.endswith("fp32") else "bf16-mixed"
-            runs[name] = subprocess.Popen(fit_command(name, precision, args, stage1_ckpt), stdout=log, stderr=subprocess.STDOUT)
+            with open(args.out / f"{name}.log", "w") as log:  # the child keeps its own handle
+                runs[name] = subprocess.Popen(fit_command(name, precision, args, stage1_ckpt), stdout=log,
+                                              stderr=subprocess.STDOUT)
         curves.update(watch(runs, dirs, start))
         codes.update({name: p.returncode for name, p in runs.items()})
     text = summary(bench_text, curves, codes, args)
