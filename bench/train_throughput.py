@@ -41,32 +41,38 @@ def _config(name: str) -> dict:
     return yaml.safe_load((CONF / name).read_text())
 
 
-def _radar_batch(batch: int, gen: torch.Generator, num_freq: int = 64) -> dict:
+def _radar_batch(batch: int, gen: torch.Generator, num_freq: int = 64, surface: int = 2048, sdf: int = 4096) -> dict:
     radar = {"radar": torch.randn(batch, 32, 32, num_freq, generator=gen),
              "radar_mask": torch.ones(batch, 32, 32, dtype=torch.bool)}
     radius = 0.15 + 0.3 * torch.rand(batch, 1, 1, generator=gen)
-    surface = torch.nn.functional.normalize(torch.randn(batch, 2048, 3, generator=gen), dim=-1)
-    queries = torch.rand(batch, 4096, 3, generator=gen) * 1.1 - 0.55
+    surface = torch.nn.functional.normalize(torch.randn(batch, surface, 3, generator=gen), dim=-1)
+    queries = torch.rand(batch, sdf, 3, generator=gen) * 1.1 - 0.55
     return {**radar, "surface_points": surface * radius, "surface_normals": surface,
             "sdf_points": queries, "sdf_values": queries.norm(dim=-1) - radius[..., 0], "index": torch.arange(batch)}
 
 
-def build(name: str, batch: int = BATCH) -> tuple[torch.nn.Module, dict]:
-    """A freshly initialised (seed 0) training-mode model at its medium config and a synthetic batch."""
+def build(name: str, batch: int = BATCH, model_args: dict | None = None, points: dict | None = None
+          ) -> tuple[torch.nn.Module, dict]:
+    """A freshly initialised (seed 0) training-mode model at its medium config and a synthetic batch.
+
+    ``model_args`` override the model file's ``init_args``; ``points`` (``surface``, ``sdf``) the
+    batch's points per shape (default: the medium DataModule's 2,048 / 4,096)."""
     from lightning.pytorch.cli import instantiate_class
 
     torch.manual_seed(0)
     gen = torch.Generator().manual_seed(1)
+    model_args, sizes = model_args or {}, {"surface": 2048, "sdf": 4096, **(points or {})}
     if name == "stage1":
         from radar2shape.models.sdf_vae import SDFVAE
 
-        return SDFVAE(**_config("sdf_vae_medium.yaml")["init_args"]).train(), _radar_batch(batch, gen)
+        hparams = {**_config("sdf_vae_medium.yaml")["init_args"], **model_args}
+        return SDFVAE(**hparams).train(), _radar_batch(batch, gen, **sizes)
     if name == "stage2":
         from radar2shape.models.radar_diffusion import RadarDiffusion
 
         stage2 = {k: v for k, v in _config("radar_diffusion_medium.yaml")["init_args"].items() if k != "stage1_ckpt"}
-        model = RadarDiffusion(stage1_hparams=_config("sdf_vae_medium.yaml")["init_args"], **stage2).train()
-        data = _radar_batch(batch, gen)
+        model = RadarDiffusion(stage1_hparams=_config("sdf_vae_medium.yaml")["init_args"], **{**stage2, **model_args}).train()
+        data = _radar_batch(batch, gen, **sizes)
         with torch.no_grad():  # training reads the latents cached at fit start
             model._train_latents = dict(enumerate(model.stage1.encode(data["surface_points"])[0]))
             model.standardiser.fit(torch.stack(list(model._train_latents.values())))
@@ -151,6 +157,39 @@ def path(name: str):
             kernels.set_bf16_training(False)
 
 
+GRID_RUNS = {"stage1": "radar2shape_stage1", "stage2": "radar2shape-full-seed0"}  # the run each stage repeats
+
+
+def grid_settings(grid: str, name: str) -> dict:
+    """What ``grid``'s run of stage ``name`` trains with: ``model_args`` (its ``model.init_args``
+    overrides), ``points`` (its training points per shape) and ``bf16`` (the cpu_bf16 layer)."""
+    from radar2shape.sweep import load_grid
+
+    run = next(r for r in load_grid(grid).runs if r.name == GRID_RUNS[name])
+    prefix = "model.init_args."
+    model_args = {k.removeprefix(prefix): v for k, v in run.overrides.items()
+                  if k.startswith(prefix) and k != prefix + "stage1_ckpt"}
+    bf16 = "conf/trainer/cpu_bf16.yaml" in run.configs or run.overrides.get("trainer.precision") == "bf16-mixed"
+    return {"model_args": model_args, "points": run.overrides.get("data.init_args.points.train"), "bf16": bf16}
+
+
+def compare_grids(names: list[str], grids: list[str], device: torch.device, rounds: int, steps: int) -> None:
+    """Shapes/s of each stage as ``grids[0]`` trains it (reference kernels: the committed rows) against
+    ``grids[1]`` (current kernels, its points, model options and precision), in one run."""
+    print(f"grid settings: {grids[0]} (reference kernels) against {grids[1]} (shapes/s: wall | per CPU-second)")
+    for name in [n for n in names if n in GRID_RUNS]:
+        runners = []
+        for grid, kernel_path in zip(grids, ("reference", "fast")):
+            settings = grid_settings(grid, name)
+            model, batch = to_device(*build(name, model_args=settings["model_args"], points=settings["points"]), device)
+            runners.append(Runner(model, batch, "bf16" if settings["bf16"] else kernel_path))
+        timed = [[r.time(steps or STEPS[name]) for r in runners] for _ in range(rounds)]
+        (ref_wall, ref_cpu), (new_wall, new_cpu) = (tuple(min(rnd[i][k] for rnd in timed) for k in (0, 1)) for i in (0, 1))
+        print(f"  {name:8s} {grids[0]} {BATCH / ref_wall:6.1f} | {BATCH / ref_cpu:6.1f}   {grids[1]} "
+              f"{BATCH / new_wall:6.1f} | {BATCH / new_cpu:6.1f}   x{ref_wall / new_wall:.2f} wall, x{ref_cpu / new_cpu:.2f} CPU",
+              flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--models", nargs="+", default=["stage1", "stage2", "tmnet", "list"], choices=sorted(STEPS))
@@ -159,6 +198,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=2, help="rounds in which the paths take turns")
     parser.add_argument("--bf16", action="store_true", help="also time the opt-in bfloat16 autocast path")
     parser.add_argument("--device", default="cpu", help="cpu (default) or cuda")
+    parser.add_argument("--grids", nargs=2, default=["table1-medium", "table1-medium-fast"], metavar=("REF", "NEW"),
+                        help="also time Stage 1 and 2 as these two grids train them ('' '': skip)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     device = torch.device(args.device)
@@ -180,6 +221,8 @@ def main() -> None:
         ratios = [f"{p} x{times['reference'][0] / times[p][0]:.2f} wall, x{times['reference'][1] / times[p][1]:.2f} CPU"
                   for p in paths[1:]]
         print(f"  {name:8s} " + "   ".join(cells) + "   " + "; ".join(ratios), flush=True)
+    if all(args.grids):
+        compare_grids(args.models, args.grids, device, args.rounds, args.steps)
 
 
 if __name__ == "__main__":

@@ -382,3 +382,41 @@ def test_a_changed_command_failed_run_or_cut_checkpoint_starts_over(tmp_path):
     (run_dir / "failed").unlink()
     (run_dir / "run.yaml").write_text(yaml.safe_dump({"name": "a", "fit": ["--trainer.max_epochs=9"]}))
     assert sweep.resumable_checkpoint(run, run_dir) is None
+
+
+def _at(config: dict, dotted: str):
+    """The value at a dotted key of a printed config (KeyError when a level is missing)."""
+    for part in dotted.split("."):
+        config = config[part]
+    return config
+
+
+def _first_run_of_each_override_set(grid) -> list:
+    """One run per distinct (command, configs, override keys): the parse is what is tested, not the values."""
+    seen, runs = set(), []
+    for run in grid.runs:
+        key = (run.command, tuple(run.configs), tuple(run.overrides))
+        if key not in seen:
+            seen.add(key)
+            runs.append(run)
+    return runs
+
+
+@pytest.mark.parametrize("path", sorted((REPO / "conf" / "grid").glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_grid_override_lands_where_it_says(path, monkeypatch, capsys, tmp_path):
+    """Each ``key.path: value`` of a grid reads back at that key of the run's parsed config.
+
+    Two dotted overrides under one dict-typed value (``points.train.surface`` then
+    ``points.train.sdf``) do not merge: the second replaces the whole dict, and the first is lost
+    without a word. A grid must give such a value as one dict."""
+    monkeypatch.chdir(REPO)
+    grid = sweep.load_grid(path.stem)
+    for run in _first_run_of_each_override_set(grid):
+        with pytest.raises(SystemExit) as exit_info:
+            cli.main([run.command, *run.args(tmp_path / run.name), "--print_config"])
+        assert exit_info.value.code in (0, None), (run.name, capsys.readouterr().err[-500:])
+        printed = yaml.safe_load(capsys.readouterr().out)
+        for key, value in run.overrides.items():
+            if "." not in key:  # a config file or a class name, expanded by the parser
+                continue
+            assert _at(printed, key) == value, (run.name, key)

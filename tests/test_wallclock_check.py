@@ -57,8 +57,8 @@ def test_fit_command_is_the_grids_fit_with_the_checks_overrides(name, epochs, tm
         epochs, "00:00:02:30", str(tmp_path / "runs" / name))
     assert str(trainer["precision"]) == ("bf16-mixed" if name.endswith("bf16") else "32")
     assert (data["root"], data["num_workers"]) == (str(tmp_path / "data"), 3)
-    if name.startswith("stage1"):  # the grid's SDF point budget of Stage 1
-        assert data["points"]["train"]["sdf"] == 2048
+    if name.startswith("stage1"):  # the grid's point budget of Stage 1
+        assert data["points"]["train"] == {"surface": 2048, "sdf": 2048}
     else:  # the grid's Stage 2 settings, on the given Stage 1
         assert printed["model"]["init_args"]["stage1_ckpt"] == str(tmp_path / "s1.ckpt")
         assert (trainer["check_val_every_n_epoch"], printed["seed_everything"]) == (10, 0)

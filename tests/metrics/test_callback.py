@@ -171,3 +171,39 @@ def test_cli_callback_and_metric_classes_agree_on_one_pair(tmp_path, capsys):
     for key in cli:
         assert cli[key] == pytest.approx(callback[key], rel=1e-9) and cli[key] == pytest.approx(classes[key], rel=1e-12)
     assert 0 < cli["iou"] < 1 and cli["chamfer_l2_x1e3"] > 2 * 0.05**2 * 1e3
+
+
+class SlowKnown(Known):
+    """Known shapes, and a training step that takes at least ``STEP_SLEEP`` seconds of wall time."""
+
+    STEP_SLEEP = 0.05
+
+    def training_step(self, batch, batch_idx):
+        import time
+
+        time.sleep(self.STEP_SLEEP)
+        return self.layer(torch.ones(1, 1)).sum() * 0.0
+
+    def configure_optimizers(self):
+        return torch.optim.SGD(self.parameters(), lr=0.0)
+
+
+class TrainData(Data):
+    def train_dataloader(self):
+        return DataLoader(list(range(3)), batch_size=1)  # three steps an epoch
+
+
+def test_each_validation_logs_the_fits_wall_seconds_when_it_began(tmp_path, records):
+    """``val/fit_seconds``: the learning curve against wall time; at least the sleeps of the steps before it."""
+    evaluator = ReconstructionEvaluator([ShapeScorer(N_POINTS, seed=0)], every_n_epochs=1, num_saved=0)
+    logger = L.pytorch.loggers.CSVLogger(tmp_path)
+    trainer = L.Trainer(default_root_dir=tmp_path, logger=logger, accelerator="cpu", devices=1, max_epochs=2,
+                        callbacks=[evaluator], num_sanity_val_steps=0, enable_progress_bar=False,
+                        enable_model_summary=False, enable_checkpointing=False, log_every_n_steps=1)
+    trainer.fit(SlowKnown(PREDICTIONS), datamodule=TrainData(records))
+    import csv
+
+    with open(tmp_path / "lightning_logs" / "version_0" / "metrics.csv", newline="") as handle:
+        seconds = [float(r["val/fit_seconds"]) for r in csv.DictReader(handle) if r.get("val/fit_seconds")]
+    assert len(seconds) == 2  # one per validation
+    assert seconds[0] >= 3 * SlowKnown.STEP_SLEEP and seconds[1] >= seconds[0] + 3 * SlowKnown.STEP_SLEEP

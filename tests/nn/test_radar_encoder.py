@@ -31,6 +31,22 @@ def test_resnet_output_shape_and_small_images():
         ResNetEncoder(3, 4, depth=20)
 
 
+def test_stride_two_stem_halves_the_first_stage_and_keeps_the_weights():
+    """The stem's stride changes the feature maps, not the parameters: a stride-1 encoder's weights
+    load into the stride-2 one, whose stem output is the stride-1 output at every other cell."""
+    torch.manual_seed(0)
+    one = ResNetEncoder(5, 12, depth=18, width_mult=0.125)
+    two = ResNetEncoder(5, 12, depth=18, width_mult=0.125, stem_stride=2)
+    two.load_state_dict(one.state_dict())
+    image = torch.randn(2, 5, 32, 32)
+    stem_one, stem_two = one.features[0](image), two.features[0](image)
+    assert stem_one.shape[-2:] == (32, 32) and stem_two.shape[-2:] == (16, 16)
+    torch.testing.assert_close(stem_two, stem_one[..., ::2, ::2])
+    assert two.features(image).shape[-2:] == (2, 2) and one.features(image).shape[-2:] == (4, 4)
+    with pytest.raises(ValueError, match="stem_stride"):
+        ResNetEncoder(3, 4, stem_stride=3)
+
+
 def test_blocks_are_encoded_independently_and_see_the_mask():
     torch.manual_seed(0)
     enc = RadarBlockEncoder(n_freq=12, n_blocks=3, dim=16, depth=18, width_mult=0.125).eval()

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import csv
 import math
+import time
 from pathlib import Path
 
 import lightning as L
@@ -160,8 +161,14 @@ class ReconstructionEvaluator(L.Callback):
         self._pending: dict[str, list] = {s: [] for s in SPLITS}  # (samples, index, rows) awaiting their swap
         self._radars: dict[str, dict] = {s: {} for s in SPLITS}  # record index -> its radar keys (CPU)
 
+    def on_fit_start(self, trainer, pl_module) -> None:
+        self._fit_started = time.perf_counter()
+
     def on_validation_epoch_start(self, trainer, pl_module) -> None:
         self._start_epoch("val")
+        # wall seconds of this sitting's fit when validation began: learning curves against time
+        started = getattr(self, "_fit_started", None)
+        self._val_at_seconds = None if started is None else time.perf_counter() - started
 
     def on_test_epoch_start(self, trainer, pl_module) -> None:
         self._start_epoch("test")
@@ -178,6 +185,8 @@ class ReconstructionEvaluator(L.Callback):
     def on_validation_epoch_end(self, trainer, pl_module) -> None:
         if self._scoring_val(trainer):
             self._finish_epoch(trainer, pl_module, "val")
+            if getattr(self, "_val_at_seconds", None) is not None:
+                pl_module.log("val/fit_seconds", float(self._val_at_seconds), sync_dist=False)
 
     def on_test_epoch_end(self, trainer, pl_module) -> None:
         self._finish_epoch(trainer, pl_module, "test")

@@ -99,6 +99,8 @@ class RadarDiffusion(ReconstructionModel):
         encoder_depth, encoder_width: ResNet depth (18/34/50/101/152) and width multiplier.
         roll_padding: "zeros" or "circular": how the radar ResNet pads the roll axis
             (:class:`~radar2shape.nn.radar_encoder.RadarBlockEncoder`; circular adds roll-angle channels).
+        encoder_stem_stride: stride of the radar ResNet's stem (1 or 2; 2 quarters the work of its
+            first stage, docs/throughput.md).
         num_steps, schedule: diffusion steps T and noise schedule (``cosine`` or ``linear``).
         eps_skip: predict the noise as ``sqrt(1 - abar) h_t + sqrt(abar) net`` (see
             :meth:`GaussianDiffusion.skip_eps`; without it, samples from the cosine schedule explode).
@@ -134,6 +136,7 @@ class RadarDiffusion(ReconstructionModel):
         encoder_depth: int = 152,
         encoder_width: float = 1.0,
         roll_padding: str = "zeros",
+        encoder_stem_stride: int = 1,
         num_steps: int = 1000,
         schedule: str = "cosine",
         eps_skip: bool = True,
@@ -154,6 +157,8 @@ class RadarDiffusion(ReconstructionModel):
         super().__init__()
         if roll_padding not in PADDINGS:
             raise UserInputError(f"RadarDiffusion: roll_padding must be one of {', '.join(PADDINGS)}, got {roll_padding!r}")
+        if encoder_stem_stride not in (1, 2):
+            raise UserInputError(f"RadarDiffusion: encoder_stem_stride must be 1 or 2, got {encoder_stem_stride}")
         if loss not in ("v", "eps"):
             raise UserInputError(f"RadarDiffusion: loss must be 'v' or 'eps', got {loss!r}")
         if loss == "v" and not eps_skip:
@@ -175,7 +180,7 @@ class RadarDiffusion(ReconstructionModel):
 
         self.standardiser = LatentStandardiser(self.n_levels, self.latent_dim)
         self.radar_encoder = RadarBlockEncoder(num_freq, self.n_levels, dim, encoder_depth, encoder_width,
-                                               roll_padding)
+                                               roll_padding, encoder_stem_stride)
         self.latent_in = nn.Linear(self.latent_dim, dim)
         self.token_type = nn.Parameter(torch.zeros(2, dim))  # 0: radar token, 1: shape token
         self.time_embed = TimestepEmbedding(dim)

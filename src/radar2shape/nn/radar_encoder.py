@@ -129,20 +129,24 @@ class ResNetEncoder(nn.Module):
         width_mult: multiplies the stage widths 64/128/256/512 (1.0 = the standard ResNet;
             e.g. 0.125 gives 8/16/32/64 for a CPU-sized model).
         roll_padding: "zeros" or "circular" (the last image axis wraps: :class:`RollConv2d`).
+        stem_stride: stride of the 3x3 stem (1 keeps the image's resolution for the first stage;
+            2 halves each side, a quarter of the stem and first-stage work, the largest share).
     """
 
     def __init__(self, in_channels: int, out_dim: int, depth: int = 18, width_mult: float = 1.0,
-                 roll_padding: str = "zeros") -> None:
+                 roll_padding: str = "zeros", stem_stride: int = 1) -> None:
         super().__init__()
         if depth not in RESNET_LAYOUTS:
             raise ValueError(f"ResNet depth must be one of {sorted(RESNET_LAYOUTS)}, got {depth}")
         if roll_padding not in PADDINGS:
             raise ValueError(f"roll_padding must be one of {PADDINGS}, got {roll_padding!r}")
+        if stem_stride not in (1, 2):
+            raise ValueError(f"stem_stride must be 1 or 2, got {stem_stride}")
         kind, counts = RESNET_LAYOUTS[depth]
         block = BasicBlock if kind == "basic" else Bottleneck
         widths = [max(4, round(w * width_mult)) for w in (64, 128, 256, 512)]
         layers: list[nn.Module] = [
-            conv(in_channels, widths[0], 3, 1, 1, roll_padding), group_norm(widths[0]), nn.ReLU(inplace=True)
+            conv(in_channels, widths[0], 3, stem_stride, 1, roll_padding), group_norm(widths[0]), nn.ReLU(inplace=True)
         ]
         c_in = widths[0]
         for stage, (width, count) in enumerate(zip(widths, counts)):
@@ -188,14 +192,14 @@ class RadarBlockEncoder(nn.Module):
     """
 
     def __init__(self, n_freq: int, n_blocks: int, dim: int, depth: int = 18, width_mult: float = 1.0,
-                 roll_padding: str = "zeros") -> None:
+                 roll_padding: str = "zeros", stem_stride: int = 1) -> None:
         super().__init__()
         self.n_blocks = n_blocks
         self.dim = dim
         self.roll_channels = 2 if roll_padding == "circular" else 0
         self.register_buffer("freq_index", block_frequency_index(n_freq, n_blocks), persistent=False)
         channels = self.freq_index.shape[1]
-        self.resnet = ResNetEncoder(channels + 1 + self.roll_channels, dim, depth, width_mult, roll_padding)
+        self.resnet = ResNetEncoder(channels + 1 + self.roll_channels, dim, depth, width_mult, roll_padding, stem_stride)
         self.level = nn.Linear(2 * channels, dim)  # masked mean and std of each channel
 
     def forward(self, radar: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:

@@ -1,0 +1,31 @@
+"""bench/train_throughput.py's grid comparison: it times what each grid's Stage 1 and Stage 2 train with."""
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+spec = importlib.util.spec_from_file_location("train_throughput", REPO / "bench" / "train_throughput.py")
+bench = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(bench)
+
+
+@pytest.mark.parametrize("grid, stage, expected", [
+    ("table1-medium", "stage1", {"model_args": {}, "points": {"surface": 2048, "sdf": 2048}, "bf16": False}),
+    ("table1-medium", "stage2", {"model_args": {}, "points": None, "bf16": False}),
+    ("table1-medium-fast", "stage1",
+     {"model_args": {"lr_decay_steps": 500}, "points": {"surface": 1024, "sdf": 2048}, "bf16": True}),
+    ("table1-medium-fast", "stage2", {"model_args": {"encoder_stem_stride": 2}, "points": None, "bf16": False}),
+])
+def test_grid_settings_are_the_grids_own(grid, stage, expected, monkeypatch):
+    monkeypatch.chdir(REPO)
+    assert bench.grid_settings(grid, stage) == expected
+
+
+def test_build_takes_the_settings_into_model_and_batch():
+    model, batch = bench.build("stage1", batch=2, model_args={"lr_decay_steps": 500}, points={"surface": 1024, "sdf": 2048})
+    assert model.hparams.lr_decay_steps == 500
+    assert batch["surface_points"].shape == (2, 1024, 3) and batch["sdf_values"].shape == (2, 2048)
+    model, batch = bench.build("stage2", batch=2, model_args={"encoder_stem_stride": 2})
+    assert model.radar_encoder.resnet.features[0].stride == (2, 2) and batch["sdf_points"].shape == (2, 4096, 3)
