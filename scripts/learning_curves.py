@@ -25,13 +25,18 @@ sys.path[:0] = [str(REPO / "src"), str(REPO)]
 
 from radar2shape.errors import UserInputError  # noqa: E402
 
+SECONDS = "val/fit_seconds"  # logged by the evaluator at each validation
+
 
 def read_curve(path: Path, metric: str, loss: str = "train/loss_epoch") -> list[dict]:
-    """``[{epoch, step, value, loss}]`` for every epoch that logged ``metric`` (loss: that epoch's, or nan)."""
+    """``[{epoch, step, value, loss, seconds}]`` for every epoch that logged ``metric`` (loss: that
+    epoch's, or nan; seconds: the fit's wall seconds when that validation began, ``val/fit_seconds``, or nan)."""
     rows = list(csv.DictReader(path.open()))
     losses = {r["epoch"]: float(r[loss]) for r in rows if r.get(loss)}
+    seconds = {r["epoch"]: float(r[SECONDS]) for r in rows if r.get(SECONDS)}
     return [{"epoch": int(r["epoch"]), "step": int(r["step"]), "value": float(r[metric]),
-             "loss": losses.get(r["epoch"], math.nan)} for r in rows if r.get(metric)]
+             "loss": losses.get(r["epoch"], math.nan), "seconds": seconds.get(r["epoch"], math.nan)}
+            for r in rows if r.get(metric)]
 
 
 def grid_curves(grid_name: str, metric: str, runs: Path | None = None, only: list[str] | None = None) -> dict[str, list[dict]]:
@@ -61,8 +66,13 @@ def markdown(curves: dict[str, list[dict]], metric: str) -> str:
         if not curve:
             lines += [f"no `{metric}` logged", ""]
             continue
-        lines += ["| epoch | step | " + metric + " | train loss (epoch) |", "|---|---|---|---|"]
-        lines += [f"| {p['epoch']} | {p['step']} | {p['value']:.4f} | {p['loss']:.4g} |" for p in curve]
+        if all(math.isnan(p["seconds"]) for p in curve):
+            lines += ["| epoch | step | " + metric + " | train loss (epoch) |", "|---|---|---|---|"]
+            lines += [f"| {p['epoch']} | {p['step']} | {p['value']:.4f} | {p['loss']:.4g} |" for p in curve]
+        else:
+            lines += ["| epoch | step | " + metric + " | train loss (epoch) | fit seconds |", "|---|---|---|---|---|"]
+            lines += [f"| {p['epoch']} | {p['step']} | {p['value']:.4f} | {p['loss']:.4g} | {p['seconds']:.0f} |"
+                      for p in curve]
         lines.append("")
     return "\n".join(lines)
 

@@ -35,6 +35,18 @@ def test_curve_pairs_each_validation_with_its_epoch_loss(tmp_path):
     assert [(p["epoch"], p["step"], p["value"], p["loss"]) for p in curve] == [(1, 125, 0.25, 0.20), (3, 251, 0.55, 0.05)]
 
 
+def test_wall_seconds_of_each_validation_become_a_column(tmp_path):
+    timed = LOG.replace("val/iou_mean\n", "val/iou_mean,val/fit_seconds\n").replace(",0.25\n", ",0.25,61.4\n")
+    timed = timed.replace(",0.55\n", ",0.55,130.6\n")
+    write_run(tmp_path, "a", timed)
+    curve = learning_curves.read_curve(tmp_path / "a/fit/version_0/metrics.csv", "val/iou_mean")
+    assert [(p["step"], p["seconds"]) for p in curve] == [(125, 61.4), (251, 130.6)]
+    text = learning_curves.markdown({"a": curve}, "val/iou_mean")
+    assert "| 3 | 251 | 0.5500 | 0.05 | 131 |" in text and "fit seconds" in text
+    untimed = [{**p, "seconds": float("nan")} for p in curve]  # logs from before the column: as they were
+    assert "fit seconds" not in learning_curves.markdown({"a": untimed}, "val/iou_mean")
+
+
 def test_grid_report_lists_fitted_runs_only(tmp_path, monkeypatch):
     runs = tmp_path / "runs"
     write_run(runs, "stage1", LOG)

@@ -63,8 +63,8 @@ def batch_size_of(batch: dict) -> int:
 class ForeachEMA(EMAWeightAveraging):
     """Lightning's EMA of the weights, updated by one foreach lerp over all tensors a step.
 
-    Lightning's own averages the tensors one by one (about 400 small operations a Stage-2 step,
-    ~14 % of that fit's time on 2 cores: docs/throughput.md); the average is the same up to rounding.
+    Lightning's own averages the tensors one by one (about 400 small operations a Stage-2 step;
+    bench/fit_steps.py, docs/throughput.md); the average is the same up to rounding.
     """
 
     def __init__(self, decay: float) -> None:
