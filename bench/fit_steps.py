@@ -21,11 +21,10 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO / "src"), str(REPO)]
+sys.path[:0] = [str(REPO / "src"), str(REPO), str(Path(__file__).resolve().parent)]
 
 import lightning as L  # noqa: E402
-
-GRID_RUNS = {"stage1": "radar2shape_stage1", "stage2": "radar2shape-full-seed0"}
+from train_throughput import GRID_RUNS  # noqa: E402
 LIGHTNING_EMA = "lightning-ema"  # a pseudo-argument: Lightning's own per-tensor EMA callback
 # (label, arguments added to the line above); the last line of each is the table1-medium-fast setting
 STEPS = {

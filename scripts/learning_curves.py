@@ -66,13 +66,11 @@ def markdown(curves: dict[str, list[dict]], metric: str) -> str:
         if not curve:
             lines += [f"no `{metric}` logged", ""]
             continue
-        if all(math.isnan(p["seconds"]) for p in curve):
-            lines += ["| epoch | step | " + metric + " | train loss (epoch) |", "|---|---|---|---|"]
-            lines += [f"| {p['epoch']} | {p['step']} | {p['value']:.4f} | {p['loss']:.4g} |" for p in curve]
-        else:
-            lines += ["| epoch | step | " + metric + " | train loss (epoch) | fit seconds |", "|---|---|---|---|---|"]
-            lines += [f"| {p['epoch']} | {p['step']} | {p['value']:.4f} | {p['loss']:.4g} | {p['seconds']:.0f} |"
-                      for p in curve]
+        timed = not all(math.isnan(p["seconds"]) for p in curve)  # logs before val/fit_seconds: no column
+        header = ["epoch", "step", metric, "train loss (epoch)"] + ["fit seconds"] * timed
+        lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        lines += [f"| {p['epoch']} | {p['step']} | {p['value']:.4f} | {p['loss']:.4g} |" + f" {p['seconds']:.0f} |" * timed
+                  for p in curve]
         lines.append("")
     return "\n".join(lines)
 

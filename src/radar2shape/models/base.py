@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING
 
 import lightning as L
 import torch
-from lightning.pytorch.callbacks import EMAWeightAveraging
 from lightning.pytorch.callbacks.weight_averaging import WeightAveraging
 from torch.optim.swa_utils import get_ema_multi_avg_fn
 
@@ -60,16 +59,15 @@ def batch_size_of(batch: dict) -> int:
     raise ValueError(f"batch has no tensor to count samples from (keys: {sorted(batch)})")
 
 
-class ForeachEMA(EMAWeightAveraging):
-    """Lightning's EMA of the weights, updated by one foreach lerp over all tensors a step.
+class ForeachEMA(WeightAveraging):
+    """An EMA of the weights updated after every step by one foreach lerp over all tensors.
 
-    Lightning's own averages the tensors one by one (about 400 small operations a Stage-2 step;
-    bench/fit_steps.py, docs/throughput.md); the average is the same up to rounding.
+    Lightning's ``EMAWeightAveraging`` averages the tensors one by one (about 400 small operations
+    a Stage-2 step; bench/fit_steps.py, docs/throughput.md); the average is the same up to rounding.
     """
 
     def __init__(self, decay: float) -> None:
-        WeightAveraging.__init__(self, multi_avg_fn=get_ema_multi_avg_fn(decay))
-        self.update_every_n_steps, self.update_starting_at_step, self.update_starting_at_epoch = 1, None, None
+        super().__init__(multi_avg_fn=get_ema_multi_avg_fn(decay))
 
 
 class ReconstructionModel(L.LightningModule):
