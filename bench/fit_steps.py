@@ -107,7 +107,8 @@ def main() -> None:
     parser.add_argument("--skip", type=int, default=40, help="steps before timing starts (loader and caches warm)")
     parser.add_argument("--steps", type=int, default=100, help="timed steps")
     parser.add_argument("--data", type=Path, default=REPO / "data/parts_medium")
-    parser.add_argument("--stage1-ckpt", type=Path, default=None)
+    parser.add_argument("--stage1-ckpt", type=Path, default=REPO / "src/radar2shape/weights/radar2shape_parts_medium.ckpt",
+                        help="a Stage-1 checkpoint or a Stage-2 one whose Stage 1 is taken (default: the shipped model)")
     parser.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
     args = parser.parse_args()
     if not (args.data / "manifest.json").is_file():
@@ -121,12 +122,6 @@ def main() -> None:
              f"{args.skip}-{args.skip + args.steps}, no validation (`python bench/fit_steps.py`).", "",
              "| stage | change (each line adds to the line above) | s/step | x first line |", "|---|---|---|---|"]
     with tempfile.TemporaryDirectory(prefix="fit_steps_") as tmp:
-        if "stage2" in args.stages and args.stage1_ckpt is None:
-            sys.path.insert(0, str(REPO / "scripts"))
-            from wallclock_check import extract_stage1
-
-            args.stage1_ckpt = extract_stage1(REPO / "src/radar2shape/weights/radar2shape_parts_medium.ckpt",
-                                              Path(tmp) / "stage1.ckpt")
         for stage in args.stages:
             added, first = [], None
             for i, (label, change) in enumerate(STEPS[stage]):

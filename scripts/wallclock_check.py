@@ -9,7 +9,7 @@ What it runs, in order:
    ``--minutes`` of wall time: the table1-medium grid's own fits (``conf/grid/table1-medium.yaml``,
    its trainer layer swapped for ``conf/trainer/gpu.yaml`` on a GPU), Stage 1 (``radar2shape_stage1``)
    in float32 and in ``bf16-mixed``, and Stage 2 (``radar2shape-full-seed0``) in ``bf16-mixed`` on the
-   Stage 1 given by ``--stage1-ckpt`` (default: the one inside the shipped model, extracted). Run
+   Stage 1 given by ``--stage1-ckpt`` (default: the shipped model, whose Stage 1 a Stage-2 fit takes). Run
    names are ``stage1-`` or ``stage2-`` and end in ``fp32`` (float32) or ``bf16`` (``bf16-mixed``).
 While they run, the wall time of each new validation row is noted, so ``DIR/wallclock_check.md`` can give
 validation IoU against steps and seconds, and the step and second at which it first reaches the CPU
@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+SHIPPED = REPO / "src/radar2shape/weights/radar2shape_parts_medium.ckpt"
 sys.path[:0] = [str(REPO / "src"), str(REPO)]
 
 CPU_CURVES = REPO / "reports/table1-medium/learning_curves.md"
@@ -41,19 +42,6 @@ def cpu_final(run: str) -> tuple[int, float]:
     section = CPU_CURVES.read_text().split(f"## {run}\n", 1)[1].split("\n## ", 1)[0]
     rows = re.findall(r"^\| (\d+) \| (\d+) \| ([0-9.]+) \|", section, flags=re.M)
     return int(rows[-1][1]), float(rows[-1][2])
-
-
-def extract_stage1(stage2_ckpt: Path, out: Path) -> Path:
-    """A Stage-1 (SDFVAE) checkpoint holding the Stage 1 inside a Stage-2 checkpoint."""
-    import lightning
-    import torch
-
-    ckpt = torch.load(stage2_ckpt, map_location="cpu", weights_only=True)
-    state = {k.removeprefix("stage1."): v for k, v in ckpt["state_dict"].items() if k.startswith("stage1.")}
-    out.parent.mkdir(parents=True, exist_ok=True)
-    torch.save({"state_dict": state, "hyper_parameters": dict(ckpt["hyper_parameters"]["stage1_hparams"]),
-                "pytorch-lightning_version": lightning.__version__}, out)
-    return out
 
 
 def fit_command(name: str, precision: str, args: argparse.Namespace, stage1_ckpt: Path) -> list[str]:
@@ -149,8 +137,7 @@ def main() -> int:
         bench_text = bench.stdout
         (args.out / "bench.txt").write_text(bench.stdout + bench.stderr[-3000:])
         print(bench.stdout, bench.stderr[-2000:], flush=True)
-    stage1_ckpt = args.stage1_ckpt or extract_stage1(REPO / "src/radar2shape/weights/radar2shape_parts_medium.ckpt",
-                                                     args.out / "stage1_shipped.ckpt")
+    stage1_ckpt = args.stage1_ckpt or SHIPPED  # Stage 2 starts from the shipped model's Stage 1
     dirs = {name: args.out / "runs" / name for name in args.runs}
     groups = [[name] for name in args.runs] if args.sequential else [args.runs]
     curves, codes = {}, {}

@@ -1,33 +1,21 @@
-"""scripts/wallclock_check.py: the CPU reference it compares with, the Stage 1 it lifts out of a Stage-2
-checkpoint, and the step it reports as reaching that reference."""
+"""scripts/wallclock_check.py: the CPU reference it compares with, and the step it reports as reaching that reference."""
 
 import importlib.util
 from pathlib import Path
 
 import pytest
 import yaml
-import torch
 
 REPO = Path(__file__).resolve().parents[1]
 spec = importlib.util.spec_from_file_location("wallclock_check", REPO / "scripts" / "wallclock_check.py")
 wallclock_check = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(wallclock_check)
-SHIPPED = REPO / "src/radar2shape/weights/radar2shape_parts_medium.ckpt"
 
 
 def test_cpu_reference_is_the_last_validation_row_of_the_committed_curves():
     # reports/table1-medium/learning_curves.md: Stage 1 ends 0.7135 at step 3779, Stage 2 seed 0 0.5890 at 5039
     assert wallclock_check.cpu_final("radar2shape_stage1") == (3779, 0.7135)
     assert wallclock_check.cpu_final("radar2shape-full-seed0") == (5039, 0.5890)
-
-
-def test_extracted_stage1_loads_as_sdfvae_with_the_shipped_weights(tmp_path):
-    from radar2shape.models.radar_diffusion import load_stage1
-
-    stage1 = load_stage1(wallclock_check.extract_stage1(SHIPPED, tmp_path / "stage1.ckpt"))
-    shipped = torch.load(SHIPPED, map_location="cpu", weights_only=True)["state_dict"]
-    state = stage1.state_dict()
-    assert state and all(torch.equal(v, shipped[f"stage1.{k}"]) for k, v in state.items())
 
 
 @pytest.mark.parametrize("rows, expected", [

@@ -204,6 +204,34 @@ def test_fit_start_stores_statistics_and_radar_grid(stage1_ckpt, tmp_path):
     assert not any(p.requires_grad for p in loaded.stage1.parameters())
 
 
+def test_a_stage2_checkpoint_gives_its_stage1_to_a_new_stage2(stage1_ckpt, tmp_path):
+    """stage1_ckpt may be a trained Stage 2: the new model starts from that Stage 1, weight for weight."""
+    from radar2shape.models.radar_diffusion import load_stage1
+
+    trained = tiny_model(stage1_ckpt)
+    with torch.no_grad():  # a Stage 1 that differs from the file the first model read
+        for p in trained.stage1.parameters():
+            p.add_(torch.randn_like(p))
+    stage2_path = save_checkpoint(trained, tmp_path / "stage2.ckpt")
+    stage1 = load_stage1(stage2_path)
+    assert dict(stage1.hparams) == dict(trained.hparams.stage1_hparams)
+    state, expected = stage1.state_dict(), trained.stage1.state_dict()
+    assert state.keys() == expected.keys() and all(torch.equal(v, expected[k]) for k, v in state.items())
+    restarted = tiny_model(stage2_path)
+    assert all(torch.equal(v, expected[k]) for k, v in restarted.stage1.state_dict().items())
+
+
+def test_learning_rate_schedule_from_hyperparameters(stage1_ckpt):
+    """lr_decay_steps / lr_decay give the step decay (rate 1e-3 -> 2.5e-4 after 3 steps at 0.25)."""
+    config = tiny_model(stage1_ckpt, lr=1e-3, lr_decay_steps=3, lr_decay=0.25).configure_optimizers()
+    optimizer, scheduler = config["optimizer"], config["lr_scheduler"]["scheduler"]
+    for _ in range(3):
+        optimizer.step()
+        scheduler.step()
+    assert optimizer.param_groups[0]["lr"] == pytest.approx(2.5e-4)
+    assert isinstance(tiny_model(stage1_ckpt).configure_optimizers(), torch.optim.Optimizer)  # 0 steps: constant
+
+
 def test_bad_configuration_is_reported(stage1_ckpt, tmp_path):
     with pytest.raises(UserInputError, match="stage1_ckpt"):
         RadarDiffusion(stage1_ckpt=str(tmp_path / "missing.ckpt"))

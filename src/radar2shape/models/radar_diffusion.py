@@ -36,14 +36,25 @@ from radar2shape.radar.spec import RadarSpec
 
 
 def load_stage1(path: str | Path) -> SDFVAE:
-    """A Stage-1 :class:`SDFVAE` from a Lightning checkpoint (``weights_only`` load)."""
+    """A Stage-1 :class:`SDFVAE` from a Lightning checkpoint (``weights_only`` load).
+
+    ``path`` may also be a Stage-2 checkpoint (a trained or shipped Radar2Shape model): it carries
+    its Stage 1's weights and hyperparameters, so a new Stage 2 can start from that exact Stage 1.
+    """
     path = Path(path)
     if not path.is_file():
         raise UserInputError(f"stage1_ckpt: {path} not found (train Stage 1 first: conf/experiment/sdf_vae_*.yaml)")
     try:
-        return SDFVAE.load_from_checkpoint(path, map_location="cpu", weights_only=True)
-    except (KeyError, TypeError, ValueError, RuntimeError) as err:
-        message = f"stage1_ckpt: {path} is not a checkpoint of SDFVAE ({type(err).__name__}: {err})"
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+        stage1_hparams = ckpt.get("hyper_parameters", {}).get("stage1_hparams")
+        if stage1_hparams is None:
+            return SDFVAE.load_from_checkpoint(path, map_location="cpu", weights_only=True)
+        stage1 = SDFVAE(**stage1_hparams)
+        stage1.load_state_dict({k.removeprefix("stage1."): v for k, v in ckpt["state_dict"].items()
+                                if k.startswith("stage1.")})
+        return stage1
+    except (KeyError, TypeError, ValueError, RuntimeError, AttributeError) as err:
+        message = f"stage1_ckpt: {path} is not a checkpoint of SDFVAE or RadarDiffusion ({type(err).__name__}: {err})"
         raise UserInputError(message) from err
 
 
@@ -90,7 +101,8 @@ class RadarDiffusion(ReconstructionModel):
     """Radar -> Stage-1 latents by causal Transformer diffusion; meshes through the frozen Stage-1 decoder.
 
     Args (primitive, so checkpoints load with ``torch.load(weights_only=True)``):
-        stage1_ckpt: Stage-1 SDFVAE checkpoint (read once; its weights are copied into this model).
+        stage1_ckpt: Stage-1 SDFVAE checkpoint, or a Stage-2 checkpoint whose Stage 1 is taken (read
+            once; its weights are copied into this model).
         stage1_hparams: filled in from ``stage1_ckpt``; lets a Stage-2 checkpoint rebuild Stage 1 alone.
         latent_cache: optional ``.pt``/``.npz`` of training latents (``mu``, ``index``), instead of
             encoding ``surface_points`` with Stage 1 at fit start.
@@ -111,7 +123,8 @@ class RadarDiffusion(ReconstructionModel):
         num_samples, sample_steps, sample_eta, sampler: defaults of :meth:`reconstruct` (K samples,
             ``ddim`` with that many steps and eta, or ``ddpm``).
         mesh_resolution: marching-cubes grid of :meth:`reconstruct`; sample_seed: sampling seed.
-        lr, weight_decay: AdamW settings. ema_decay: exponential moving average of the weights used
+        lr, weight_decay: AdamW settings; lr_decay_steps / lr_decay: the rate times ``lr_decay`` every
+            that many steps (0: constant). ema_decay: exponential moving average of the weights used
             for validation, checkpoints and sampling (0 = off; the last iterate is noisy at a constant rate).
         cond_drop, guidance: classifier-free guidance: that share of training samples sees the
             "nothing observed" radar (zero, fully masked), and sampling uses
@@ -150,6 +163,8 @@ class RadarDiffusion(ReconstructionModel):
         sample_seed: int = 0,
         lr: float = 1e-4,
         weight_decay: float = 0.0,
+        lr_decay_steps: int = 0,
+        lr_decay: float = 0.5,
         cond_drop: float = 0.0,
         guidance: float = 1.0,
         ema_decay: float = 0.0,
