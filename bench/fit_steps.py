@@ -23,6 +23,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "src"), str(REPO), str(Path(__file__).resolve().parent)]
 
+import radar2shape  # noqa: E402,F401  (before torch: the package's OpenMP settings apply, as in a fit)
 import lightning as L  # noqa: E402
 from train_throughput import GRID_RUNS  # noqa: E402
 LIGHTNING_EMA = "lightning-ema"  # a pseudo-argument: Lightning's own per-tensor EMA callback
@@ -100,6 +101,15 @@ def time_fit(stage: str, added: list[str], args: argparse.Namespace, root: Path)
     return timer.seconds
 
 
+def write_table(lines: list[str], out: Path | None) -> None:
+    """Print a markdown table and, with ``out``, write it there too."""
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if out:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--stages", nargs="+", default=["stage1", "stage2"], choices=sorted(STEPS))
@@ -110,6 +120,7 @@ def main() -> None:
     parser.add_argument("--stage1-ckpt", type=Path, default=REPO / "src/radar2shape/weights/radar2shape_parts_medium.ckpt",
                         help="a Stage-1 checkpoint or a Stage-2 one whose Stage 1 is taken (default: the shipped model)")
     parser.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
+    parser.add_argument("--fast-only", action="store_true", help="time only the table1-medium-fast line of each stage")
     args = parser.parse_args()
     if not (args.data / "manifest.json").is_file():
         print(f"fit_steps: skipped, no dataset at {args.data} (radar2shape build-data --config "
@@ -126,15 +137,13 @@ def main() -> None:
             added, first = [], None
             for i, (label, change) in enumerate(STEPS[stage]):
                 added = [*added, *change]
+                if args.fast_only and "(table1-medium-fast)" not in label:
+                    continue
                 seconds = time_fit(stage, added, args, Path(tmp) / f"{stage}-{i}")
                 first = first or seconds
                 lines.append(f"| {stage} | {label} | {seconds:.3f} | {first / seconds:.2f}x |")
                 print(lines[-1], flush=True)
-    text = "\n".join(lines) + "\n"
-    print(text)
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text)
+    write_table(lines, args.out)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,7 @@ from pathlib import Path
 
 sys.path[:0] = [str(Path(__file__).resolve().parent)]
 
+import radar2shape  # noqa: E402,F401  (before torch: the package's OpenMP settings apply, as in a fit)
 import torch  # noqa: E402
 from torch.profiler import ProfilerActivity, profile  # noqa: E402
 from train_throughput import BATCH, REPO, build, optimizer_of, path  # noqa: E402
@@ -97,7 +98,8 @@ def main() -> None:
     parser.add_argument("--no-data", action="store_true", help="skip the data-loading line")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    print(f"{torch.get_num_threads()} threads, OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', '(default)')}, "
+    print(f"{torch.get_num_threads()} threads, OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', '(unset)')}, "
+          f"GOMP_SPINCOUNT={os.environ.get('GOMP_SPINCOUNT', '(unset)')}, "
           f"batch {BATCH}, medium configs")
     print("| model | path | CPU s/step | forward | backward | optimizer | top operators (self CPU) | op calls "
           "| outside ops |")

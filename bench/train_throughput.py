@@ -27,6 +27,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "src"), str(REPO)]
 
+import radar2shape  # noqa: E402,F401  (before torch: the package's OpenMP settings apply, as in a fit)
 import torch  # noqa: E402
 import yaml  # noqa: E402
 

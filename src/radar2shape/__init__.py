@@ -3,15 +3,18 @@
 Subpackages: ``radar`` (simulators), ``geometry`` (meshes, sampling, families),
 ``nn`` (building blocks), ``models`` (Lightning modules), ``metrics`` (shared metrics).
 
-OpenMP threads that finish a parallel region sleep instead of spinning (``OMP_WAIT_POLICY=PASSIVE``,
-unless the environment sets it): on a machine where anything else runs (a DataLoader worker
-beside 2 training threads on 2 cores already does), spinning threads take the cores the others
-need; bench/train_throughput.py measured 2x more Stage-1 shapes/s on a loaded 2-core machine
-(docs/throughput.md). It takes effect only if torch is imported after this package.
+OpenMP threads that finish a parallel region spin ``GOMP_SPINCOUNT=10000`` times (some
+microseconds) before they sleep, unless the environment sets ``GOMP_SPINCOUNT`` or
+``OMP_WAIT_POLICY``. libgomp's default (300,000) keeps spinning threads on cores that other work
+needs; sleeping at once (``OMP_WAIT_POLICY=PASSIVE``) pays a wake-up at every region. Measured on
+the table1-medium-fast Stage-2 fit, 2 cores (bench/omp_wait.py, docs/throughput.md): quiet, 0.091
+s a step against 0.138 sleeping at once; beside two busy processes, 0.274 against 0.248. It takes
+effect only if torch is imported after this package.
 """
 
 import os
 
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+if "OMP_WAIT_POLICY" not in os.environ:
+    os.environ.setdefault("GOMP_SPINCOUNT", "10000")
 
 __version__ = "0.1.0"
