@@ -26,6 +26,7 @@ sys.path[:0] = [str(REPO / "src"), str(REPO), str(Path(__file__).resolve().paren
 import radar2shape  # noqa: E402,F401  (before torch: the package's OpenMP settings apply, as in a fit)
 import lightning as L  # noqa: E402
 from train_throughput import GRID_RUNS  # noqa: E402
+FAST = "(table1-medium-fast)"  # marks the line of each stage that the table1-medium-fast grid trains with
 LIGHTNING_EMA = "lightning-ema"  # a pseudo-argument: Lightning's own per-tensor EMA callback
 # (label, arguments added to the line above); the last line of each is the table1-medium-fast setting
 STEPS = {
@@ -33,13 +34,13 @@ STEPS = {
         ("table1-medium as committed (2,048 encoder points, loader process, float32)", []),
         ("loading in the training process", ["--data.init_args.num_workers=0"]),
         ("1,024 encoder points", ["--data.init_args.points.train={surface: 1024, sdf: 2048}"]),
-        ("bfloat16 autocast (table1-medium-fast)", ["--trainer.precision=bf16-mixed"]),
+        (f"bfloat16 autocast {FAST}", ["--trainer.precision=bf16-mixed"]),
     ],
     "stage2": [
         ("table1-medium as committed (loader process, Lightning's EMA, float32)", [LIGHTNING_EMA]),
         ("EMA by one foreach lerp", []),
         ("loading in the training process", ["--data.init_args.num_workers=0"]),
-        ("stride-2 stem of the radar ResNet (table1-medium-fast)", ["--model.init_args.encoder_stem_stride=2"]),
+        (f"stride-2 stem of the radar ResNet {FAST}", ["--model.init_args.encoder_stem_stride=2"]),
         ("bfloat16 autocast (not adopted)", ["--trainer.precision=bf16-mixed"]),
     ],
 }
@@ -101,6 +102,15 @@ def time_fit(stage: str, added: list[str], args: argparse.Namespace, root: Path)
     return timer.seconds
 
 
+def missing_data(script: str, data: Path) -> bool:
+    """True (and says so) when the parts_medium records the fits read are not built."""
+    if (data / "manifest.json").is_file():
+        return False
+    print(f"{script}: skipped, no dataset at {data} (radar2shape build-data --config "
+          "conf/data/parts_medium.yaml --out data/parts_medium --workers 2)")
+    return True
+
+
 def write_table(lines: list[str], out: Path | None) -> None:
     """Print a markdown table and, with ``out``, write it there too."""
     text = "\n".join(lines) + "\n"
@@ -122,9 +132,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
     parser.add_argument("--fast-only", action="store_true", help="time only the table1-medium-fast line of each stage")
     args = parser.parse_args()
-    if not (args.data / "manifest.json").is_file():
-        print(f"fit_steps: skipped, no dataset at {args.data} (radar2shape build-data --config "
-              "conf/data/parts_medium.yaml --out data/parts_medium --workers 2)")
+    if missing_data("fit_steps", args.data):
         return
     import torch
 
@@ -137,7 +145,7 @@ def main() -> None:
             added, first = [], None
             for i, (label, change) in enumerate(STEPS[stage]):
                 added = [*added, *change]
-                if args.fast_only and "(table1-medium-fast)" not in label:
+                if args.fast_only and FAST not in label:
                     continue
                 seconds = time_fit(stage, added, args, Path(tmp) / f"{stage}-{i}")
                 first = first or seconds

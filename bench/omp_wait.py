@@ -22,7 +22,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fit_steps import write_table  # noqa: E402
+from fit_steps import FAST, missing_data, write_table  # noqa: E402
 # (label, environment of the fit); every line names its variables, so the package's default
 # (src/radar2shape/__init__.py sets them only when the environment does not) is one of these lines.
 SETTINGS = [
@@ -32,7 +32,7 @@ SETTINGS = [
     ("GOMP_SPINCOUNT=300000 (libgomp's default)", {"GOMP_SPINCOUNT": "300000"}),
 ]
 BUSY = "while True: pass"
-STEP_LINE = re.compile(r"^\| (\w+) \| .*\(table1-medium-fast\) \| ([0-9.]+) \|", re.M)
+STEP_LINE = re.compile(rf"^\| (\w+) \| .*{re.escape(FAST)} \| ([0-9.]+) \|", re.M)
 
 
 def time_setting(stage: str, env: dict[str, str], load: int, args: argparse.Namespace) -> float:
@@ -63,9 +63,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=80)
     parser.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
     args = parser.parse_args()
-    if not (REPO / "data/parts_medium/manifest.json").is_file():
-        print("omp_wait: skipped, no dataset at data/parts_medium (radar2shape build-data --config "
-              "conf/data/parts_medium.yaml --out data/parts_medium --workers 2)")
+    if missing_data("omp_wait", REPO / "data/parts_medium"):
         return
     header = " | ".join(f"{load} busy: s/step" for load in args.loads)
     lines = [f"The table1-medium-fast {args.stage} fit, {args.threads} threads, {os.cpu_count()} cores, steps "
