@@ -65,8 +65,8 @@ monocone: install ## Zero-shot monocone experiment on simulated measurements -> 
 	$(PY) scripts/monocone_experiment.py --table1-dir runs/table1
 	$(VENV)/bin/radar2shape report --grid monocone
 
-default-model: install ## Export Radar2Shape of table1-medium (full, seed 0) as the model reconstruct uses without --ckpt
-	$(PY) scripts/export_default_model.py --ckpt runs/table1-medium/radar2shape-full-seed0/fit/version_0/checkpoints/last.ckpt
+default-model: install ## Export Radar2Shape of table1-medium-stage2 (full, seed 2) as the model reconstruct uses without --ckpt
+	$(PY) scripts/export_default_model.py --ckpt runs/table1-medium-stage2/radar2shape_long-full-seed2/fit/version_0/checkpoints/last.ckpt
 
 validation: install ## PO and PO + edge currents against the Austin RCS suite in ../shared/validation -> reports/radar/validation.md
 	$(PY) -m radar2shape.radar.validation --out reports/radar/validation.md

@@ -20,7 +20,7 @@ def test_committed_pages_match_the_reports():
 
 
 def test_model_card_quotes_the_shipped_runs_per_shape_scores():
-    with (ROOT / "reports/table1-medium/scores/radar2shape-full-seed0.csv").open() as handle:
+    with (ROOT / results.TABLE1_MEDIUM_STAGE2 / "scores" / f"{results.SHIPPED_RUN}.csv").open() as handle:
         iou = np.mean([float(row["iou"]) for row in csv.DictReader(handle)])
     card = (ROOT / results.MODEL_CARD).read_text()
     assert f"| full | {iou:.3f} |" in card
