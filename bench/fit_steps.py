@@ -43,6 +43,15 @@ STEPS = {
         (f"stride-2 stem of the radar ResNet {FAST}", ["--model.init_args.encoder_stem_stride=2"]),
         ("bfloat16 autocast (not adopted)", ["--trainer.precision=bf16-mixed"]),
     ],
+    # Exact roll augmentation (the real-target grid's DataModule): a turned sample's latents are not
+    # the cached unturned ones, so Stage 1 encodes it unless its (record, turn) was seen before.
+    "stage2-roll": [
+        ("table1-medium-fast Stage 2 (unturned: latents cached at fit start)",
+         ["--data.init_args.num_workers=0", "--model.init_args.encoder_stem_stride=2"]),
+        ("roll augmentation: each sample turned, Stage 1 encodes it", ["--data.init_args.roll_augment=true"]),
+        ("roll augmentation, (record, turn) latents cached: few repeats in the first steps",
+         ["--model.init_args.cache_turned_latents=true"]),
+    ],
 }
 
 
@@ -88,11 +97,11 @@ def time_fit(stage: str, added: list[str], args: argparse.Namespace, root: Path)
     from radar2shape.cli import main
     from radar2shape.sweep import load_grid
 
-    run = next(r for r in load_grid("table1-medium").runs if r.name == GRID_RUNS[stage])
+    run = next(r for r in load_grid("table1-medium").runs if r.name == GRID_RUNS[stage.split("-")[0]])
     fit_args = [a for a in run.args(root) if not a.startswith("--model.init_args.stage1_ckpt")]
     fit_args += ["--trainer.limit_val_batches=0", f"--trainer.max_steps={args.skip + args.steps + 1}",
                  f"--data.init_args.root={args.data}"]
-    if stage == "stage2":
+    if stage.startswith("stage2"):
         fit_args.append(f"--model.init_args.stage1_ckpt={args.stage1_ckpt}")
     timer = StepTimer(args.skip, args.skip + args.steps)
     with extra_callbacks(timer, LIGHTNING_EMA in added):

@@ -363,3 +363,24 @@ def test_latent_cache_is_not_used_for_turned_samples(stage1_ckpt):
     model._train_latents = {0: torch.zeros_like(fresh[0]), 1: torch.zeros_like(fresh[0])}
     assert model.encode_shapes(batch).abs().max() == 0  # unturned: the cache
     torch.testing.assert_close(model.encode_shapes({**batch, "roll_turn": torch.tensor([3, 9])}), fresh)
+
+
+def test_turned_latents_are_cached_per_record_and_turn(stage1_ckpt):
+    """``cache_turned_latents``: a (record, roll_turn) pair is encoded once; another turn of the same
+    record, or another record, is encoded from its own points; only the unseen rows reach Stage 1."""
+    model = tiny_model(stage1_ckpt, cache_turned_latents=True).train()
+    points = sphere_batch()["surface_points"]  # two different point sets
+    encoded = []
+    encode = model.stage1.encode
+    model.stage1.encode = lambda p: encoded.append(p.shape[0]) or encode(p)
+    assert (encode(points)[0][0] - encode(points)[0][1]).abs().max() > 1e-3  # so a cache hit is visible
+    first = {"index": torch.tensor([0, 1]), "roll_turn": torch.tensor([3, 3]), "surface_points": points}
+    torch.testing.assert_close(model.encode_shapes(first), encode(points)[0])
+    swapped = {**first, "surface_points": points.flip(0)}  # same records and turns, other points
+    torch.testing.assert_close(model.encode_shapes(swapped), encode(points)[0])  # the cached ones
+    mixed = {"index": torch.tensor([0, 0]), "roll_turn": torch.tensor([3, 35]), "surface_points": points.flip(0)}
+    out = model.encode_shapes(mixed)
+    torch.testing.assert_close(out[0], encode(points)[0][0])  # seen: cached
+    torch.testing.assert_close(out[1], encode(points.flip(0))[0][1])  # record 0 turned otherwise: fresh
+    assert encoded == [2, 1]  # the first batch, then only the one unseen row
+    assert sorted(model._turned_latents) == [(0, 3), (0, 35), (1, 3)]

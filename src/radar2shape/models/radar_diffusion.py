@@ -106,6 +106,9 @@ class RadarDiffusion(ReconstructionModel):
         stage1_hparams: filled in from ``stage1_ckpt``; lets a Stage-2 checkpoint rebuild Stage 1 alone.
         latent_cache: optional ``.pt``/``.npz`` of training latents (``mu``, ``index``), instead of
             encoding ``surface_points`` with Stage 1 at fit start.
+        cache_turned_latents: with the DataModule's ``roll_augment``, keep each (record, turn)'s
+            latents the first time they are encoded and reuse them, as the cache above does for the
+            unturned pose (one record has 2 R poses, so Stage 1 stops running once most were seen).
         num_freq: number of radar frequencies F, cut into L contiguous blocks (equal when L divides F).
         dim, n_layers, n_heads, mlp_ratio, dropout: Transformer width D, depth, heads, MLP ratio.
         encoder_depth, encoder_width: ResNet depth (18/34/50/101/152) and width multiplier.
@@ -140,6 +143,7 @@ class RadarDiffusion(ReconstructionModel):
         stage1_ckpt: str | None = None,
         stage1_hparams: dict | None = None,
         latent_cache: str | None = None,
+        cache_turned_latents: bool = False,
         num_freq: int = 64,
         dim: int = 512,
         n_layers: int = 8,
@@ -206,6 +210,7 @@ class RadarDiffusion(ReconstructionModel):
         self.diffusion = GaussianDiffusion(num_steps, schedule, clip_x0 or None)
         self.register_buffer("attn_mask", causal_mask(2 * self.n_levels), persistent=False)
         self._train_latents: dict[int, torch.Tensor] = {}
+        self._turned_latents: dict[tuple[int, int], torch.Tensor] = {}  # (record, roll_turn) -> latents
 
     def train(self, mode: bool = True):
         """Stage 1 stays in eval mode: it is frozen."""
@@ -243,14 +248,28 @@ class RadarDiffusion(ReconstructionModel):
 
         Not for a batch of turned samples (``roll_turn``, the DataModule's ``roll_augment``): the cache
         holds each record's latents in one pose, and pairing them with turned radar would teach the
-        model that the radar says nothing about the shape.
+        model that the radar says nothing about the shape. Those are keyed by their turn instead
+        (``cache_turned_latents``).
         """
         index = batch.get("index")
-        if self.training and index is not None and self._train_latents and "roll_turn" not in batch:
-            rows = [self._train_latents.get(int(i)) for i in index]
-            if all(r is not None for r in rows):
-                return torch.stack(rows).to(self.device)
+        if self.training and index is not None:
+            if "roll_turn" in batch:
+                if self.hparams.get("cache_turned_latents", False):
+                    return self._cached_turned(batch, index, batch["roll_turn"])
+            elif self._train_latents:
+                rows = [self._train_latents.get(int(i)) for i in index]
+                if all(r is not None for r in rows):
+                    return torch.stack(rows).to(self.device)
         return self.stage1.encode(batch["surface_points"])[0]
+
+    def _cached_turned(self, batch: dict, index: torch.Tensor, turn: torch.Tensor) -> torch.Tensor:
+        """Latents of turned samples: Stage 1 encodes only the (record, turn) pairs not seen before."""
+        keys = list(zip(index.tolist(), turn.tolist()))
+        new = [i for i, key in enumerate(keys) if key not in self._turned_latents]
+        if new:
+            for i, mu in zip(new, self.stage1.encode(batch["surface_points"][new])[0]):
+                self._turned_latents[keys[i]] = mu.clone()
+        return torch.stack([self._turned_latents[key] for key in keys]).to(self.device)
 
     @torch.no_grad()
     def collect_train_latents(self, loader) -> dict[int, torch.Tensor]:
