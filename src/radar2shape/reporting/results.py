@@ -238,8 +238,23 @@ def _real_targets_line(root: Path) -> str:
             f"the model shipped before this one (`{PREVIOUS_SHIPPED_RUN}` of grid `table1-medium`: the same Stage 1 "
             f"and training shapes, a shorter Stage 2) scored IoU {iou:.3f}, with a radar dependence of "
             f"{dependence:+.3f} (it hardly read their radar) and a Stage-1 ceiling of {ceiling:.3f}, which bounds "
-            f"this model too ([report]({_link(TABLE1_REAL / 'table1-real.md')}); turned test aircraft: "
-            f"[yaw_check_real.md]({_link(Path('reports/shipped-model/earlier-model/yaw_check_real.md'))})).")
+            f"this model too ([report]({_link(TABLE1_REAL / 'table1-real.md')}))." + _yaw_line(root))
+
+
+YAW_CHECK = Path("reports/shipped-model/yaw_check_real.md")
+
+
+def _yaw_line(root: Path) -> str:
+    """This model on the real test aircraft, unturned and turned (the mean row of its yaw check)."""
+    path = root / YAW_CHECK
+    if not path.is_file():
+        return ""
+    text = path.read_text()
+    rows = [line for line in text.splitlines() if line.startswith("| ") and "__" in line]
+    mean = next(line for line in text.splitlines() if line.startswith("| mean |")).split("|")
+    yaw = text.split("| IoU at 0 deg | IoU at ", 1)[1].split(" ", 1)[0]
+    return (f" This model, on {len(rows)} real test aircraft: IoU {float(mean[3]):.3f}, and {float(mean[4]):.3f} "
+            f"with the aircraft turned {yaw} deg about z ([yaw_check_real.md]({_link(YAW_CHECK)})).")
 
 
 def model_card(root: Path, checkpoint: Path) -> str:
