@@ -31,7 +31,6 @@ TABLE1_MEDIUM_STAGE2 = Path("reports/table1-medium-stage2")
 # The shipped model (make default-model): of the three full-observability seeds of table1-medium-stage2,
 # the one with the highest final validation IoU; its Stage 1 is table1-medium's.
 SHIPPED_GRID, SHIPPED_RUN, SHIPPED_STAGE1 = "table1-medium-stage2", "radar2shape_long-full-seed2", "radar2shape_stage1"
-PREVIOUS_SHIPPED_RUN = "radar2shape-full-seed0"  # table1-medium's run, shipped before it
 
 
 def read_table(path: Path) -> list[tuple[str, dict[str, float]]]:
@@ -226,19 +225,24 @@ def _fit_minutes(root: Path) -> float:
     return sum(json.loads(path.read_text())["record"]["fit_seconds"] for path in records) / 60
 
 
+REAL_SHIPPED = Path("reports/real-shipped")  # grid real-shipped: the shipped model on the real test split
+
+
 def _real_targets_line(root: Path) -> str:
-    """What the card says of real objects, from the real-target report's per-shape scores when it exists."""
-    path = root / TABLE1_REAL / "scores" / "shipped-full.csv"
+    """What the card says of real objects: this model's per-shape scores on the real test split, the
+    references' from the real-target report, and its yaw check."""
+    path = root / REAL_SHIPPED / "scores" / "shipped-full.csv"
     if not path.is_file():
-        return ""
+        return _yaw_line(root)
     rows = read_scores(path)
     means = pooled(rows, ("iou", "radar_dependence_iou", "ceiling_iou"))
     iou, dependence, ceiling = (means[f"{k}_mean"] for k in ("iou", "radar_dependence_iou", "ceiling_iou"))
+    nearest = pooled(read_scores(root / TABLE1_REAL / "scores" / "nearest-full.csv"), ("iou",))["iou_mean"]
     return (f" On the {len(rows)} real test objects of `make data-real` (aircraft, ships, vehicles, buildings) "
-            f"the model shipped before this one (`{PREVIOUS_SHIPPED_RUN}` of grid `table1-medium`: the same Stage 1 "
-            f"and training shapes, a shorter Stage 2) scored IoU {iou:.3f}, with a radar dependence of "
-            f"{dependence:+.3f} (it hardly read their radar) and a Stage-1 ceiling of {ceiling:.3f}, which bounds "
-            f"this model too ([report]({_link(TABLE1_REAL / 'table1-real.md')}))." + _yaw_line(root))
+            f"it scores IoU {iou:.3f}, with a radar dependence of {dependence:+.3f} (it hardly reads their radar) "
+            f"and a Stage-1 ceiling of {ceiling:.3f} ([report]({_link(REAL_SHIPPED / 'real-shipped.md')}); "
+            f"a radar lookup in the real training objects: {nearest:.3f}, "
+            f"[table1-real]({_link(TABLE1_REAL / 'table1-real.md')}))." + _yaw_line(root))
 
 
 YAW_CHECK = Path("reports/shipped-model/yaw_check_real.md")
