@@ -19,4 +19,6 @@ for run in full-seed0 full-seed1 full-seed2 partial-seed0; do
   pairs+=(--pair "200 epochs: mean of 8 - one sample, ${run/-seed/ seed }" $S/radar2shape_long_k8-$run.csv $S/radar2shape_long-$run.csv)
 done
 pairs+=(--pair "committed: mean of 8 - one sample, full seed 0" $S/radar2shape_k8-full-seed0.csv $C/radar2shape-full-seed0.csv)
+pairs+=(--pair "full model fine-tuned on masked radar - 200 epochs on masked radar, partial seed 0" $S/radar2shape_ft-partial-seed0.csv $S/radar2shape_long-partial-seed0.csv)
+pairs+=(--pair "full model fine-tuned on masked radar - committed, partial seed 0" $S/radar2shape_ft-partial-seed0.csv $C/radar2shape-partial-seed0.csv)
 "$PY" scripts/paired_scores.py --out $R/paired.md "${pairs[@]}"

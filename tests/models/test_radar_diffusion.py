@@ -384,3 +384,22 @@ def test_turned_latents_are_cached_per_record_and_turn(stage1_ckpt):
     torch.testing.assert_close(out[1], encode(points.flip(0))[0][1])  # record 0 turned otherwise: fresh
     assert encoded == [2, 1]  # the first batch, then only the one unseen row
     assert sorted(model._turned_latents) == [(0, 3), (0, 35), (1, 3)]
+
+
+def test_init_weights_starts_from_a_trained_model_and_is_not_needed_to_load(stage1_ckpt, tmp_path):
+    source = tiny_model(stage1_ckpt)
+    trainer = fit(source, RadarStub(fit_batch(), GRID), 2, tmp_path / "source")
+    init = tmp_path / "source.ckpt"
+    trainer.save_checkpoint(init)
+    torch.manual_seed(1)  # another draw of the fresh weights, so a copy is visible
+    started = RadarDiffusion(stage1_ckpt=stage1_ckpt, init_weights=str(init), **{"num_freq": 8, **TINY_STAGE2})
+    for name, value in source.state_dict().items():
+        torch.testing.assert_close(started.state_dict()[name], value, rtol=0, atol=0, msg=name)
+    assert bool(started.standardiser.ready)  # the latent statistics come along
+    saved = tmp_path / "started.ckpt"
+    fit(started, RadarStub(fit_batch(), GRID), 1, tmp_path / "started").save_checkpoint(saved)
+    init.unlink()  # the fine-tuned model's checkpoint loads without the file it started from
+    loaded = RadarDiffusion.load_from_checkpoint(saved, map_location="cpu", weights_only=True)
+    torch.testing.assert_close(loaded.latent_out.weight, started.latent_out.weight)
+    with pytest.raises(UserInputError, match="init_weights: .* not found"):
+        tiny_model(stage1_ckpt, init_weights=str(init))

@@ -17,6 +17,7 @@ reconstructs meshes. See docs/radar_diffusion.md.
 from __future__ import annotations
 
 import contextvars
+import pickle
 from pathlib import Path
 
 import numpy as np
@@ -56,6 +57,17 @@ def load_stage1(path: str | Path) -> SDFVAE:
     except (KeyError, TypeError, ValueError, RuntimeError, AttributeError) as err:
         message = f"stage1_ckpt: {path} is not a checkpoint of SDFVAE or RadarDiffusion ({type(err).__name__}: {err})"
         raise UserInputError(message) from err
+
+
+def read_state_dict(path: str | Path, field: str) -> dict[str, torch.Tensor]:
+    """A checkpoint's ``state_dict`` (``weights_only`` load); one clear error when there is none."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserInputError(f"{field}: {path} not found")
+    try:
+        return torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
+    except (KeyError, TypeError, RuntimeError, pickle.UnpicklingError, EOFError) as err:
+        raise UserInputError(f"{field}: {path} is not a Lightning checkpoint ({type(err).__name__}: {err})") from err
 
 
 def load_latent_cache(path: str | Path) -> dict[int, torch.Tensor]:
@@ -106,6 +118,10 @@ class RadarDiffusion(ReconstructionModel):
         stage1_hparams: filled in from ``stage1_ckpt``; lets a Stage-2 checkpoint rebuild Stage 1 alone.
         latent_cache: optional ``.pt``/``.npz`` of training latents (``mu``, ``index``), instead of
             encoding ``surface_points`` with Stage 1 at fit start.
+        init_weights: a RadarDiffusion checkpoint of the same architecture whose weights (Stage 2,
+            its Stage 1 and latent statistics) this model starts from, e.g. to fine-tune a model
+            trained on fully observed radar to masked radar. Read only when the model is built
+            fresh, like ``stage1_ckpt``: a checkpoint of the fine-tuned model loads without it.
         cache_turned_latents: with the DataModule's ``roll_augment``, keep each (record, turn)'s
             latents the first time they are encoded and reuse them, as the cache above does for the
             unturned pose (one record has 2 R poses, so Stage 1 stops running once most were seen).
@@ -144,6 +160,7 @@ class RadarDiffusion(ReconstructionModel):
         stage1_hparams: dict | None = None,
         latent_cache: str | None = None,
         cache_turned_latents: bool = False,
+        init_weights: str | None = None,
         num_freq: int = 64,
         dim: int = 512,
         n_layers: int = 8,
@@ -185,6 +202,7 @@ class RadarDiffusion(ReconstructionModel):
         # A fresh contextvars.Context: the Lightning CLI hands its hyperparameters (a ContextVar) to
         # every LightningModule built while it instantiates the model, which would give Stage 1
         # this model's hyperparameters instead of its own.
+        fresh = stage1_hparams is None
         if stage1_hparams is None:
             if stage1_ckpt is None:
                 raise UserInputError("RadarDiffusion needs stage1_ckpt (a trained Stage-1 SDFVAE checkpoint)")
@@ -211,6 +229,8 @@ class RadarDiffusion(ReconstructionModel):
         self.register_buffer("attn_mask", causal_mask(2 * self.n_levels), persistent=False)
         self._train_latents: dict[int, torch.Tensor] = {}
         self._turned_latents: dict[tuple[int, int], torch.Tensor] = {}  # (record, roll_turn) -> latents
+        if fresh and init_weights:
+            self.load_state_dict(read_state_dict(init_weights, "init_weights"))
 
     def train(self, mode: bool = True):
         """Stage 1 stays in eval mode: it is frozen."""

@@ -38,6 +38,7 @@ MODEL_TITLES = {
     "radar2shape_circ": "Radar2Shape, circular roll padding",
     "radar2shape_k8": "Radar2Shape, mean of 8 samples",
     "radar2shape_long": "Radar2Shape, Stage 2 for 200 epochs",
+    "radar2shape_ft": "Radar2Shape, partial: the full 200-epoch model fine-tuned on masked radar",
     "radar2shape_long_k8": "Radar2Shape, Stage 2 for 200 epochs, mean of 8 samples",
     "diffusion_sdf": "Diffusion-SDF",
     "tmnet": "TMNet",
