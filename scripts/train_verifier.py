@@ -118,7 +118,8 @@ def main(argv=None) -> int:
 
     from data_modules.datamodules import ShapeDataModule
     from radar2shape.atomic import write_text_atomic
-    from radar2shape.models.verifier import checkpoint_digest, feature_names, fit_verifier, load_verifier, save_verifier
+    from radar2shape.geometry.families.folder import sha256_of
+    from radar2shape.models.verifier import feature_names, fit_verifier, load_verifier, save_verifier
     from radar2shape.pretrained import load_model
 
     torch.set_num_threads(2)
@@ -227,7 +228,7 @@ def main(argv=None) -> int:
     print("\n".join(lines[:12 + len(rules)]))
     if args.out and args.verifier is None:
         save_verifier(verifier, args.out, model.n_levels,
-                      {"checkpoint": args.ckpt.name, "checkpoint_sha256": checkpoint_digest(args.ckpt),
+                      {"checkpoint": args.ckpt.name, "checkpoint_sha256": sha256_of(args.ckpt),  # the exact model whose samples trained it
                        "data": str(args.data), "fit_shapes": args.fit_shapes,
                        "candidates": args.candidates, "report": str(args.report)})
         print(f"wrote {args.out}")

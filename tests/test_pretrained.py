@@ -225,7 +225,8 @@ def test_package_data_lists_the_default_model():
 
 
 def test_shipped_verifier_fits_the_shipped_model_and_is_package_data():
-    from radar2shape.models.verifier import checkpoint_digest, default_verifier_path, load_verifier
+    from radar2shape.geometry.families.folder import sha256_of
+    from radar2shape.models.verifier import default_verifier_path, load_verifier
 
     path = default_verifier_path(SHIPPED)
     if not path.is_file():
@@ -237,7 +238,7 @@ def test_shipped_verifier_fits_the_shipped_model_and_is_package_data():
     verifier = load_verifier(path, model.n_levels)  # its features are this model's (else one clear error)
     about = torch.load(path, map_location="cpu", weights_only=True)["about"]
     assert about["checkpoint"] == SHIPPED.name and about["data"] == "data/parts_unseen"
-    assert about["checkpoint_sha256"] == checkpoint_digest(SHIPPED)  # trained on this model's samples
+    assert about["checkpoint_sha256"] == sha256_of(SHIPPED)  # trained on this model's samples
     assert (REPO_ROOT / about["report"]).is_file()  # the report that scores it is committed
     assert path.stat().st_size < 100_000 and not verifier.training
 

@@ -81,3 +81,20 @@ def test_frusta_profiles_are_fixed_length_and_labelled_by_count():
         shape = family.generate(task)
         assert shape.profile.shape == (16, 2)
         assert task.class_name == f"frusta{shape.provenance['n_frusta']}"
+
+
+def test_sha256_of_is_the_files_digest_across_read_blocks(tmp_path):
+    """The provenance digest of source meshes and of the checkpoint a shipped verifier belongs to."""
+    import hashlib
+
+    from radar2shape.geometry.families.folder import sha256_of
+
+    small = tmp_path / "abc.ckpt"
+    small.write_bytes(b"abc")
+    assert sha256_of(small) == "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"  # FIPS 180-2
+    data = np.random.default_rng(0).bytes(3 * (1 << 20) + 17)  # spans several 1 MiB reads
+    large = tmp_path / "large.ckpt"
+    large.write_bytes(data)
+    assert sha256_of(large) == hashlib.sha256(data).hexdigest()
+    large.write_bytes(data[:-1] + bytes([data[-1] ^ 1]))  # one bit of the last block
+    assert sha256_of(large) != hashlib.sha256(data).hexdigest()

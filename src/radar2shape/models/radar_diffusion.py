@@ -17,7 +17,6 @@ reconstructs meshes. See docs/radar_diffusion.md.
 from __future__ import annotations
 
 import contextvars
-import pickle
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +25,7 @@ import trimesh
 from torch import nn
 from torch.nn import functional as F
 
+from radar2shape.checkpoints import load_checkpoint
 from radar2shape.errors import UserInputError
 from radar2shape.models.base import Reconstruction, ReconstructionModel
 from radar2shape.models.sdf_vae import SDFVAE
@@ -57,17 +57,6 @@ def load_stage1(path: str | Path) -> SDFVAE:
     except (KeyError, TypeError, ValueError, RuntimeError, AttributeError) as err:
         message = f"stage1_ckpt: {path} is not a checkpoint of SDFVAE or RadarDiffusion ({type(err).__name__}: {err})"
         raise UserInputError(message) from err
-
-
-def read_state_dict(path: str | Path, field: str) -> dict[str, torch.Tensor]:
-    """A checkpoint's ``state_dict`` (``weights_only`` load); one clear error when there is none."""
-    path = Path(path)
-    if not path.is_file():
-        raise UserInputError(f"{field}: {path} not found")
-    try:
-        return torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
-    except (KeyError, TypeError, RuntimeError, pickle.UnpicklingError, EOFError) as err:
-        raise UserInputError(f"{field}: {path} is not a Lightning checkpoint ({type(err).__name__}: {err})") from err
 
 
 def load_latent_cache(path: str | Path) -> dict[int, torch.Tensor]:
@@ -203,7 +192,7 @@ class RadarDiffusion(ReconstructionModel):
         # every LightningModule built while it instantiates the model, which would give Stage 1
         # this model's hyperparameters instead of its own.
         fresh = stage1_hparams is None
-        if stage1_hparams is None:
+        if fresh:
             if stage1_ckpt is None:
                 raise UserInputError("RadarDiffusion needs stage1_ckpt (a trained Stage-1 SDFVAE checkpoint)")
             stage1 = contextvars.Context().run(load_stage1, stage1_ckpt)
@@ -230,7 +219,7 @@ class RadarDiffusion(ReconstructionModel):
         self._train_latents: dict[int, torch.Tensor] = {}
         self._turned_latents: dict[tuple[int, int], torch.Tensor] = {}  # (record, roll_turn) -> latents
         if fresh and init_weights:
-            self.load_state_dict(read_state_dict(init_weights, "init_weights"))
+            self.load_state_dict(load_checkpoint(init_weights, "a RadarDiffusion checkpoint", label="init_weights")["state_dict"])
 
     def train(self, mode: bool = True):
         """Stage 1 stays in eval mode: it is frozen."""

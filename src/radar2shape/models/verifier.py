@@ -133,18 +133,6 @@ def fit_verifier(features: torch.Tensor, iou: torch.Tensor, epochs: int = 400, l
     return verifier.eval()
 
 
-def checkpoint_digest(checkpoint: Path) -> str:
-    """SHA-256 of a checkpoint file: a verifier records the exact model whose samples trained it, so a
-    replaced model with a stale verifier beside it can be told apart (same features, other samples)."""
-    import hashlib
-
-    digest = hashlib.sha256()
-    with Path(checkpoint).open("rb") as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def save_verifier(verifier: Verifier, path: Path, n_levels: int, about: dict) -> None:
     """Write the verifier (weights, feature names, what it was trained on) atomically."""
     from radar2shape.atomic import atomic_path
