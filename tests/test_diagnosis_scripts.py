@@ -70,6 +70,18 @@ def test_paired_scores_name_a_file_without_score_columns(tmp_path):
     assert str(exc.value).startswith(f"error: {bad}: expected columns") and "fscore_1pct" in str(exc.value)
 
 
+def test_paired_scores_pair_the_chosen_profile_columns(tmp_path):
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    a.write_text("index,iou_s,match_s\n0,0.7,0.05\n1,0.9,0.03\n")
+    b.write_text("index,iou_s,match_s\n1,0.6,0.04\n0,0.6,0.07\n")
+    text = paired_scores.report([("a - b", a, b)], ("iou_s", "match_s"))  # IoU-S +0.1, +0.3; MATCH-S -0.02, -0.01
+    assert "| iou_s | +0.2000 ± 0.1000 | 2 |" in text and "| match_s | -0.0150 ± 0.0050 | 2 |" in text
+    assert "| iou |" not in text
+    with pytest.raises(SystemExit) as exc:  # the default columns are not in a profile score file
+        paired_scores.read_scores(a)
+    assert str(exc.value).startswith(f"error: {a}: expected columns index, iou")
+
+
 confidence_spec = importlib.util.spec_from_file_location("confidence_check", REPO / "scripts" / "confidence_check.py")
 confidence_check = importlib.util.module_from_spec(confidence_spec)
 confidence_spec.loader.exec_module(confidence_check)

@@ -46,6 +46,9 @@ def test_optimizer_and_schedule_come_from_hyperparameters():
     assert type(tmnet.configure_optimizers()) is torch.optim.Adam
     profile = ProfileUNetDiffusion(num_aspect=8, num_freq=4, weight_decay=0.3).configure_optimizers()
     assert type(profile) is torch.optim.AdamW and profile.defaults["weight_decay"] == 0.3
+    decayed = ProfileUNetDiffusion(num_aspect=8, num_freq=4, lr_decay_steps=7, lr_decay=0.25, ema_decay=0.9)
+    scheduler = decayed.configure_optimizers()["lr_scheduler"]["scheduler"]
+    assert scheduler.step_size == 7 and scheduler.gamma == 0.25
 
 
 def test_sdf_vae_evaluates_the_posterior_mean():

@@ -161,6 +161,8 @@ class ProfileUNetDiffusion(ProfileModel):
     steps, or DDIM with ``sample_steps``; ``num_samples > 1`` averages that many draws.
     Classifier-free guidance: ``cond_drop`` trains that share of samples on the all-zero "nothing
     observed" input, and ``guidance`` > 1 samples with ``eps_u + guidance (eps_c - eps_u)``.
+    ``lr_decay_steps`` / ``lr_decay`` (a step schedule) and ``ema_decay`` (weight averaging) are the
+    base model's, as for the 3D Stage 2.
     """
 
     def __init__(
@@ -184,6 +186,9 @@ class ProfileUNetDiffusion(ProfileModel):
         sample_seed: int = 0,
         lr: float = 1e-3,
         weight_decay: float = 0.0,
+        lr_decay_steps: int = 0,
+        lr_decay: float = 0.5,
+        ema_decay: float = 0.0,
         mesh_segments: int = 64,
         cond_drop: float = 0.0,
         guidance: float = 1.0,
