@@ -167,6 +167,7 @@ def write_rollsym(grid, out: Path, layout: Layout, shapes: int, archive: Path | 
 LAYOUT = Layout("rollsym", (IOU_R, IOU_S, MATCH_S), write_rollsym, ("row", "group", "section"),
                 {"unet": "Profile U-Net diffusion (ours)", "unet_paper": "Profile U-Net diffusion, as in the paper",
                  "unet_cfg": "Profile U-Net diffusion + guidance (drop 0.15, scale 2)",
+                 "unet_long": "Profile U-Net diffusion, 200 epochs, step schedule, weight averaging",
                  "invrt": "InvRT"}, {"full": "Full", "partial": "Partial"},
                 noise_title, diagnostics=(DEPENDENCE_IOU_S, SHAPES_IOU_S),
                 describe_group=group_title({"full": "Full", "partial": "Partial"}))
