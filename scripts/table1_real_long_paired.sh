@@ -14,4 +14,5 @@ for obs in full partial; do
   pairs+=(--pair "11,960 steps - 1,560 steps (table1-real circular), $obs" $S/radar2shape_circ_steps12k-$obs-seed0.csv $C/radar2shape_circ-$obs-seed0.csv)
   pairs+=(--pair "11,960 steps - nearest neighbour, $obs" $S/radar2shape_circ_steps12k-$obs-seed0.csv $S/nearest-$obs.csv)
 done
+pairs+=(--pair "mean of 8 samples - one sample, full" $S/radar2shape_circ_steps12k_k8-full-seed0.csv $S/radar2shape_circ_steps12k-full-seed0.csv)
 "$PY" scripts/paired_scores.py --out $R/paired.md "${pairs[@]}"

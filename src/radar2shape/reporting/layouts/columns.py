@@ -41,6 +41,7 @@ MODEL_TITLES = {
     "radar2shape_ft": "Radar2Shape, partial: the full 200-epoch model fine-tuned on masked radar",
     "radar2shape_long_k8": "Radar2Shape, Stage 2 for 200 epochs, mean of 8 samples",
     "radar2shape_circ_steps12k": "Radar2Shape, circular roll padding, Stage 2 for 11,960 steps",
+    "radar2shape_circ_steps12k_k8": "Radar2Shape, circular roll padding, Stage 2 for 11,960 steps, mean of 8 samples",
     "diffusion_sdf": "Diffusion-SDF",
     "tmnet": "TMNet",
     "list": "LIST",
