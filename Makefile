@@ -14,7 +14,7 @@ DATA_DIR ?= data/parts
 WORKERS ?= 2
 
 .DEFAULT_GOAL := help
-.PHONY: help install test test-full demo data data-real fit test-model sweep report results monocone default-model validation bench clean
+.PHONY: help install test test-full demo data data-real fit test-model sweep report results monocone default-model real-model validation bench clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*## "}; {printf "  %-12s %s\n", $$1, $$2}'
@@ -67,6 +67,9 @@ monocone: install ## Zero-shot monocone experiment on simulated measurements -> 
 
 default-model: install ## Export Radar2Shape of table1-medium-stage2 (full, seed 2) as the model reconstruct uses without --ckpt
 	$(PY) scripts/export_default_model.py --ckpt runs/table1-medium-stage2/radar2shape_long-full-seed2/fit/version_0/checkpoints/last.ckpt
+
+real-model: install ## Export Radar2Shape of table1-real-long (circular, seed 0) as the model reconstruct --model real uses
+	$(PY) scripts/export_default_model.py --ckpt runs/table1-real-long/radar2shape_circ_steps12k_stage2-seed0/fit/version_0/checkpoints/last.ckpt --out src/radar2shape/weights/radar2shape_real.ckpt
 
 validation: install ## PO and PO + edge currents against the Austin RCS suite in ../shared/validation -> reports/radar/validation.md
 	$(PY) -m radar2shape.radar.validation --out reports/radar/validation.md

@@ -1,10 +1,12 @@
 """The README's picture: objects the shipped model never saw, their radar, and what it reconstructs.
 
-    python scripts/overview_figure.py [--data data/parts_unseen] [--out docs/figures/overview.png]
+    python scripts/overview_figure.py [--model parts] [--data data/parts_unseen] [--out docs/figures/overview.png]
+    python scripts/overview_figure.py --model real --data data/real --classes airliner fighter ship \
+        --out docs/figures/overview_real.png
 
 Rows: test shapes of ``--data`` (a build of conf/data/parts_unseen.yaml, which ``make demo``
 makes); columns: the object, its simulated radar (dB over aspect x roll at the middle frequency),
-and the shipped model's reconstruction with its IoU. The shapes are picked by class (``--classes``),
+and the shipped model's (``--model``: ``parts`` or ``real``) reconstruction with its IoU. The shapes are picked by class (``--classes``),
 the first test shape of each, never by score.
 """
 
@@ -21,6 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def parse_args(argv):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", default="parts", help="shipped model name (radar2shape.pretrained.SHIPPED_MODELS)")
     parser.add_argument("--data", type=Path, default=ROOT / "data/parts_unseen")
     parser.add_argument("--out", type=Path, default=ROOT / "docs/figures/overview.png")
     parser.add_argument("--classes", nargs="+", default=["airplane", "car", "chair"])
@@ -52,11 +55,11 @@ def main(argv=None) -> int:
     from radar2shape.geometry.query import sample_surface
     from radar2shape.metrics.render import depth_image
     from radar2shape.metrics.scoring import score_reconstruction
-    from radar2shape.pretrained import default_checkpoint, load_model
+    from radar2shape.pretrained import load_model, shipped_checkpoint
     from radar2shape.radar.measured import GridInput
 
     torch.set_num_threads(2)
-    model = load_model(default_checkpoint())
+    model = load_model(shipped_checkpoint(args.model))
     spec = model.radar_spec
     records = ShapeDataModule(root=str(args.data)).records("test")
     picked = first_of_each_class(records, args.classes)

@@ -35,12 +35,13 @@ from models.test_radar_diffusion import (  # noqa: F401  (single_thread: the mod
 from radar2shape.cli import main
 from radar2shape.commands.reconstruct import load_model, measured_input, reconstruct_input
 from radar2shape.errors import UserInputError
-from radar2shape.pretrained import DEFAULT_MODEL, export_checkpoint
+from radar2shape.pretrained import DEFAULT_MODEL, SHIPPED_MODELS, export_checkpoint
 from radar2shape.radar import save_response
 
 RADAR_DIFFUSION = "radar2shape.models.radar_diffusion.RadarDiffusion"
 CLI_HPARAMS = {"_class_path": RADAR_DIFFUSION, "_instantiator": "lightning.pytorch.cli.instantiate_module"}
 SHIPPED = DEFAULT_MODEL  # the real path, before any test monkeypatches it
+SHIPPED_FILES = dict(SHIPPED_MODELS)
 MAX_SHIPPED_MB = 25.0
 FLOAT16_REL_ERROR = 2.0**-11  # round-to-nearest with an 11-bit significand
 FLOAT16_SUBNORMAL_STEP = 2.0**-24  # spacing below 2^-14, where the relative bound does not hold
@@ -129,7 +130,7 @@ def test_reconstruct_without_ckpt_uses_the_default_model(tiny, tmp_path, monkeyp
     assert "model:" not in capsys.readouterr().out
     assert main(["reconstruct", *common, "--out", str(default)]) == 0
     out = capsys.readouterr().out
-    assert f"model: {tiny.exported} (the default" in out
+    assert f"model: parts ({tiny.exported}, shipped with radar2shape" in out
     first, second = (trimesh.load(p, force="mesh", process=False) for p in (explicit, default))
     assert len(first.faces) > 0
     np.testing.assert_array_equal(second.faces, first.faces)
@@ -146,6 +147,46 @@ def test_reconstruct_without_ckpt_and_no_default_model(tiny, tmp_path, monkeypat
     err = one_line_error(capsys)
     assert f"no default model is installed (expected {missing})" in err and "pass --ckpt" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == []  # no output, no folder created
+
+
+def test_model_real_reconstructs_with_its_own_file(tiny, tmp_path, monkeypatch, capsys):
+    """--model real reads SHIPPED_MODELS['real'], not the default: a missing default does not matter."""
+    monkeypatch.setitem(pretrained.SHIPPED_MODELS, "real", tiny.exported)
+    monkeypatch.setattr(pretrained, "DEFAULT_MODEL", tmp_path / "absent.ckpt")
+    explicit, named = tmp_path / "explicit.obj", tmp_path / "named.obj"
+    common = ["--radar", str(tiny.radar), "--seed", "2"]
+    assert main(["reconstruct", "--ckpt", str(tiny.exported), *common, "--out", str(explicit)]) == 0
+    capsys.readouterr()
+    assert main(["reconstruct", "--model", "real", *common, "--out", str(named)]) == 0
+    assert f"model: real ({tiny.exported}, shipped with radar2shape; --about real" in capsys.readouterr().out
+    first, second = (trimesh.load(p, force="mesh", process=False) for p in (explicit, named))
+    assert len(first.faces) > 0
+    np.testing.assert_array_equal(second.faces, first.faces)
+
+
+def test_model_names_a_missing_file_or_is_refused_with_ckpt(tiny, tmp_path, monkeypatch, capsys):
+    missing = tmp_path / "weights" / "radar2shape_real.ckpt"
+    monkeypatch.setitem(pretrained.SHIPPED_MODELS, "real", missing)
+    out = tmp_path / "out" / "m.obj"
+    assert main(["reconstruct", "--model", "real", "--radar", str(tiny.radar), "--out", str(out)]) == 2
+    err = one_line_error(capsys)
+    assert f"--model real: no such model is installed (expected {missing})" in err and "pass --ckpt" in err
+    assert main(["reconstruct", "--model", "real", "--ckpt", str(tiny.exported), "--radar", str(tiny.radar),
+                 "--out", str(out)]) == 2
+    assert "argument --ckpt: not allowed with argument --model" in one_line_error(capsys)
+    assert main(["reconstruct", "--model", "boat", "--radar", str(tiny.radar), "--out", str(out)]) == 2
+    assert "argument --model: invalid choice: 'boat'" in one_line_error(capsys)
+    assert not out.parent.exists()
+
+
+def test_checkpoint_model_resolves_shipped_names(tiny, monkeypatch):
+    from radar2shape.models.checkpoint_model import CheckpointModel
+
+    monkeypatch.setitem(pretrained.SHIPPED_MODELS, "real", tiny.exported)
+    assert CheckpointModel("real").ckpt_path == str(tiny.exported)
+    with pytest.raises(UserInputError, match="no such model is installed"):
+        monkeypatch.setitem(pretrained.SHIPPED_MODELS, "real", tiny.folder / "absent.ckpt")
+        CheckpointModel("real")
 
 
 def test_output_colliding_with_ckpt_is_still_refused(tiny, tmp_path, capsys):
@@ -216,12 +257,14 @@ def test_export_script_checks_size_and_loads_the_result(tiny, tmp_path, capsys):
     assert [p.name for p in out.parent.iterdir()] == [out.name]  # no temporary file left
 
 
-def test_package_data_lists_the_default_model():
-    """A regular (non-editable) install must carry the weights file: pyproject's package data matches it."""
+@pytest.mark.parametrize("name", sorted(SHIPPED_FILES))
+def test_package_data_lists_each_shipped_model_and_card(name):
+    """A regular (non-editable) install must carry the weights and cards: pyproject's package data matches them."""
     config = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())
     patterns = config["tool"]["setuptools"]["package-data"]["radar2shape"]
-    relative = SHIPPED.relative_to(REPO_ROOT / "src" / "radar2shape").as_posix()
-    assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns), patterns
+    for path in (SHIPPED_FILES[name], pretrained.MODEL_CARDS[name]):
+        relative = path.relative_to(REPO_ROOT / "src" / "radar2shape").as_posix()
+        assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns), (relative, patterns)
 
 
 def test_shipped_verifier_fits_the_shipped_model_and_is_package_data():
@@ -253,12 +296,14 @@ def default_grid() -> dict[str, np.ndarray]:
             "freq_hz": values["freq_ghz"] * 1e9}
 
 
-def test_shipped_model_is_on_the_default_grid_and_small():
-    if not SHIPPED.is_file():
-        pytest.skip(f"no shipped model at {SHIPPED} (export one with scripts/export_default_model.py)")
-    assert SHIPPED.stat().st_size / 1e6 <= MAX_SHIPPED_MB
-    assert "optimizer_states" not in torch.load(SHIPPED, map_location="cpu", weights_only=True)
-    model = load_model(SHIPPED)
+@pytest.mark.parametrize("name", sorted(SHIPPED_FILES))
+def test_shipped_model_is_on_the_default_grid_and_small(name):
+    path = SHIPPED_FILES[name]
+    if not path.is_file():
+        pytest.skip(f"no shipped model at {path} (export one with scripts/export_default_model.py)")
+    assert path.stat().st_size / 1e6 <= MAX_SHIPPED_MB
+    assert "optimizer_states" not in torch.load(path, map_location="cpu", weights_only=True)
+    model = load_model(path)
     assert type(model).__name__ == "RadarDiffusion" and not model.radar_spec.roll_symmetric
     expected = default_grid()
     assert [len(v) for v in expected.values()] == [32, 32, 64]

@@ -27,9 +27,21 @@ def test_model_card_quotes_the_shipped_runs_per_shape_scores():
     assert card == (ROOT / results.PACKAGED_CARD).read_text()  # what `reconstruct --about` prints
 
 
+def test_real_model_card_quotes_its_runs_and_the_lookup():
+    card = (ROOT / results.REAL_CARD).read_text()
+    scores = ROOT / results.REAL_REPORT / "scores"
+    for obs in ("full", "partial"):
+        for title, name in (("this model", f"{results.REAL_TEST}-{obs}-seed0"), ("radar lookup", f"nearest-{obs}")):
+            with (scores / f"{name}.csv").open() as handle:
+                iou = np.mean([float(row["iou"]) for row in csv.DictReader(handle)])
+            assert f"| {obs} | {title} | {iou:.3f} |" in card
+    assert card == (ROOT / results.PACKAGED_REAL_CARD).read_text()  # what `reconstruct --about real` prints
+
+
 def test_a_hand_edit_is_caught(tmp_path):
     shutil.copytree(ROOT / "reports", tmp_path / "reports", ignore=shutil.ignore_patterns("demo", "*.png"))
-    for page in (results.RESULTS_PAGE, results.MODEL_CARD, results.PACKAGED_CARD, results.README):
+    for page in (results.RESULTS_PAGE, results.MODEL_CARD, results.PACKAGED_CARD, results.REAL_CARD,
+                 results.PACKAGED_REAL_CARD, results.README):
         (tmp_path / page).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(ROOT / page, tmp_path / page)
     assert results.write_pages(tmp_path, check=True) == []
@@ -49,3 +61,11 @@ def test_about_prints_the_card(capsys):
         main(["reconstruct", "--about"])
     assert exit_.value.code == 0
     assert capsys.readouterr().out == (ROOT / results.PACKAGED_CARD).read_text()
+    with pytest.raises(SystemExit) as exit_:
+        main(["reconstruct", "--about", "real"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out == (ROOT / results.PACKAGED_REAL_CARD).read_text()
+    with pytest.raises(SystemExit) as exit_:
+        main(["reconstruct", "--about", "boat"])
+    assert exit_.value.code == 2
+    assert capsys.readouterr().err == "error: --about: no shipped model named 'boat'; expected one of parts, real\n"

@@ -1,8 +1,10 @@
-"""The model shipped inside the package, and the export that makes a training checkpoint shippable.
+"""The models shipped inside the package, and the export that makes a training checkpoint shippable.
 
-``radar2shape reconstruct`` without ``--ckpt`` uses :data:`DEFAULT_MODEL`, a RadarDiffusion
-(Stage 2, which holds its Stage-1 weights) trained on the parts family with the default radar grid
-(conf/radar/default.yaml). A training checkpoint also carries optimizer moments, loop and callback
+Two RadarDiffusion models (Stage 2, each holding its Stage-1 weights) on the default radar grid
+(conf/radar/default.yaml) ship in ``weights/``, named in :data:`SHIPPED_MODELS`: ``parts``, trained
+on the procedural parts family, and ``real``, trained on real aircraft, ships, vehicles and
+buildings (``make data-real``). ``radar2shape reconstruct`` without ``--ckpt`` uses ``--model``
+(default :data:`DEFAULT_NAME`, whose file is :data:`DEFAULT_MODEL`). A training checkpoint also carries optimizer moments, loop and callback
 states and the DataModule's settings, which inference never reads and which roughly triple its
 size; :func:`export_checkpoint` keeps only what ``LightningModule.load_from_checkpoint`` and
 :func:`load_model` reads, so the shipped file stays small and loads exactly like
@@ -18,12 +20,18 @@ from pathlib import Path
 from radar2shape.atomic import check_output_path, write_bytes_atomic
 from radar2shape.errors import UserInputError
 
-__all__ = ["DEFAULT_MODEL", "EXPORT_KEYS", "DTYPES", "export_checkpoint", "default_checkpoint", "load_model", "model_card", "size_mb"]
+__all__ = ["DEFAULT_MODEL", "DEFAULT_NAME", "SHIPPED_MODELS", "EXPORT_KEYS", "DTYPES", "export_checkpoint",
+           "default_checkpoint", "shipped_checkpoint", "card_path", "load_model", "model_card", "size_mb"]
 
-# A plain file next to this module (not importlib.resources): torch.load needs a real path, and
+# Plain files next to this module (not importlib.resources): torch.load needs a real path, and
 # setuptools installs packages unzipped, so the path is a file for editable and regular installs.
-DEFAULT_MODEL = Path(__file__).resolve().parent / "weights" / "radar2shape_parts_medium.ckpt"
-MODEL_CARD = DEFAULT_MODEL.with_name("MODEL_CARD.md")  # written by `make results` (radar2shape.reporting.results)
+WEIGHTS = Path(__file__).resolve().parent / "weights"
+SHIPPED_MODELS = {"parts": WEIGHTS / "radar2shape_parts_medium.ckpt", "real": WEIGHTS / "radar2shape_real.ckpt"}
+DEFAULT_NAME = "parts"
+DEFAULT_MODEL = SHIPPED_MODELS[DEFAULT_NAME]
+# Each model's card, written by `make results` (radar2shape.reporting.results).
+MODEL_CARDS = {"parts": WEIGHTS / "MODEL_CARD.md", "real": WEIGHTS / "MODEL_CARD_real.md"}
+MODEL_CARD = MODEL_CARDS[DEFAULT_NAME]
 
 RADAR_DIFFUSION = "radar2shape.models.radar_diffusion.RadarDiffusion"
 RADAR_SPEC_KEY = "radar_spec"  # = models.base.RADAR_SPEC_KEY (not imported: it needs Lightning)
@@ -152,20 +160,42 @@ def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None
     return size_mb(len(data))
 
 
-def model_card() -> str:
-    """The shipped model's card: what it was trained on, its measured scores, what it does not know."""
-    if not MODEL_CARD.is_file():
-        raise UserInputError(f"--about: no model card is installed (expected {MODEL_CARD})")
-    return MODEL_CARD.read_text(encoding="utf-8")
+def _check_name(name: str, label: str) -> None:
+    if name not in SHIPPED_MODELS:
+        raise UserInputError(f"{label}: no shipped model named {name!r}; expected one of {', '.join(SHIPPED_MODELS)}")
+
+
+def card_path(name: str = DEFAULT_NAME) -> Path:
+    """Where shipped model ``name``'s card is installed (:data:`MODEL_CARD` for the default)."""
+    _check_name(name, "--about")
+    return MODEL_CARD if name == DEFAULT_NAME else MODEL_CARDS[name]
+
+
+def model_card(name: str = DEFAULT_NAME) -> str:
+    """Shipped model ``name``'s card: what it was trained on, its measured scores, what it does not know."""
+    path = card_path(name)
+    if not path.is_file():
+        raise UserInputError(f"--about: no model card is installed for the {name} model (expected {path})")
+    return path.read_text(encoding="utf-8")
+
+
+def shipped_checkpoint(name: str = DEFAULT_NAME) -> Path:
+    """Shipped model ``name``'s file when it is installed; otherwise one line telling the user to pass ``--ckpt``.
+
+    The default is read from :data:`DEFAULT_MODEL` at call time, so that tests can point it elsewhere.
+    """
+    _check_name(name, "--model")
+    path = Path(DEFAULT_MODEL if name == DEFAULT_NAME else SHIPPED_MODELS[name])
+    if not path.is_file():
+        what = "--ckpt: no default model" if name == DEFAULT_NAME else f"--model {name}: no such model"
+        raise UserInputError(f"{what} is installed (expected {path}); "
+                             "pass --ckpt CKPT (a RadarDiffusion or profile model checkpoint)")
+    return path
 
 
 def default_checkpoint() -> Path:
-    """:data:`DEFAULT_MODEL` when it is installed; otherwise one line telling the user to pass ``--ckpt``."""
-    path = Path(DEFAULT_MODEL)
-    if not path.is_file():
-        raise UserInputError(f"--ckpt: no default model is installed (expected {path}); "
-                             "pass --ckpt CKPT (a RadarDiffusion or profile model checkpoint)")
-    return path
+    """The default shipped model's file (:data:`DEFAULT_MODEL`), or one line telling the user to pass ``--ckpt``."""
+    return shipped_checkpoint(DEFAULT_NAME)
 
 
 def _model_class(path: Path, hparams: dict, label: str):

@@ -11,8 +11,8 @@ paper does with measured data. The checkpoint may be a :class:`RadarDiffusion` (
 roll-symmetric profile model (``ProfileUNetDiffusion``, ``InvRT``), which takes the aspect-only
 response directly. Everything about the radar (grid, dB floor and train statistics) comes from
 the :class:`~radar2shape.radar.spec.RadarSpec` stored in the checkpoint: no dataset is needed.
-Without ``--ckpt`` the model shipped in the package (``radar2shape.pretrained.DEFAULT_MODEL``) is
-used, and its path is printed.
+Without ``--ckpt`` a model shipped in the package is used (``--model``, default
+``radar2shape.pretrained.DEFAULT_NAME``), and its path is printed.
 
 Every option, output path and input file is checked before the model runs (the marching-cubes
 grid against a memory limit too); a response with no measurement (every cell at the model's dB
@@ -35,7 +35,7 @@ import numpy as np
 from radar2shape.atomic import atomic_path, atomic_paths, check_output_path
 from radar2shape.errors import UserInputError
 from radar2shape.preflight import add_memory_option, check_input_file, check_memory, memory_limit_bytes
-from radar2shape.pretrained import DEFAULT_MODEL, load_model
+from radar2shape.pretrained import DEFAULT_NAME, SHIPPED_MODELS, load_model
 
 if TYPE_CHECKING:
     import torch
@@ -52,16 +52,16 @@ BYTES_PER_GRID_CELL = 24
 
 
 class AboutAction(argparse.Action):
-    """``--about``: print the shipped model's card and exit, like ``--help`` (no other option needed)."""
+    """``--about [MODEL]``: print a shipped model's card and exit, like ``--help`` (no other option needed)."""
 
     def __init__(self, option_strings, dest, **kwargs):
-        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+        super().__init__(option_strings, dest, nargs="?", const=DEFAULT_NAME, default=argparse.SUPPRESS, **kwargs)
 
     def __call__(self, parser, namespace, values, option_string=None):
         from radar2shape.pretrained import model_card
 
         try:
-            text = model_card()
+            text = model_card(values)
         except UserInputError as err:
             parser.exit(2, f"error: {err}\n")
         sys.stdout.write(text)
@@ -69,11 +69,17 @@ class AboutAction(argparse.Action):
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--about", action=AboutAction,
-                        help="print the shipped model's card (training data, scores, limits) and exit")
-    parser.add_argument("--ckpt", type=Path,
-                        help="RadarDiffusion or roll-symmetric profile model checkpoint (.ckpt); default: the "
-                        f"model shipped with radar2shape ({DEFAULT_MODEL}, radar2shape.pretrained.DEFAULT_MODEL)")
+    names = ", ".join(SHIPPED_MODELS)
+    parser.add_argument("--about", action=AboutAction, metavar="MODEL",
+                        help=f"print a shipped model's card (training data, scores, limits) and exit; MODEL is "
+                        f"one of {names} (default {DEFAULT_NAME})")
+    model = parser.add_mutually_exclusive_group()
+    model.add_argument("--model", choices=tuple(SHIPPED_MODELS),
+                       help=f"a model shipped with radar2shape: parts (procedural parts family) or real (real "
+                       f"aircraft, ships, vehicles, buildings); default {DEFAULT_NAME}")
+    model.add_argument("--ckpt", type=Path,
+                       help="RadarDiffusion or roll-symmetric profile model checkpoint (.ckpt) instead of a "
+                       "shipped model")
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--radar", type=Path, help="response .npz as written by 'radar2shape simulate'")
     source.add_argument("--measured", type=Path, nargs="+", metavar="FILE",
@@ -275,21 +281,22 @@ def load_candidate_verifier(args: argparse.Namespace, checkpoint: Path, model):
     return load_verifier(path, model.n_levels, args.candidates)
 
 
-def _checkpoint_path(ckpt: Path | None) -> Path:
-    """``--ckpt`` when given; else the shipped default model, named on stdout so the user knows which ran."""
+def _checkpoint_path(ckpt: Path | None, name: str | None) -> Path:
+    """``--ckpt`` when given; else shipped model ``name`` (default :data:`DEFAULT_NAME`), named on stdout."""
     if ckpt is not None:
         return ckpt
-    from radar2shape.pretrained import default_checkpoint
+    from radar2shape.pretrained import shipped_checkpoint
 
-    path = default_checkpoint()
-    print(f"model: {path} (the default shipped with radar2shape; pass --ckpt to use another)")
+    name = name or DEFAULT_NAME
+    path = shipped_checkpoint(name)
+    print(f"model: {name} ({path}, shipped with radar2shape; --about {name} describes it, --ckpt uses another)")
     return path
 
 
 def main(args: argparse.Namespace) -> int:
     outputs = _check_arguments(args)
     memory_limit_bytes(args.memory_limit_gb)  # a bad limit is refused before the model loads
-    checkpoint = _checkpoint_path(args.ckpt)
+    checkpoint = _checkpoint_path(args.ckpt, args.model)
     model = load_model(checkpoint)
     spec = model.radar_spec
     profile = is_profile_model(model)

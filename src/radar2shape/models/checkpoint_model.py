@@ -7,7 +7,8 @@ diagnostics and reports score it as every other row. A model normalises its dB i
 statistics of its own training set, while the DataModule normalises with the test set's; the
 batches are put back into the model's normalisation (:func:`renormalise`) before it reads them.
 Nothing is trained: run it with ``radar2shape test`` only, e.g.
-``--model radar2shape.models.checkpoint_model.CheckpointModel --model.init_args.ckpt default``.
+``--model radar2shape.models.checkpoint_model.CheckpointModel --model.init_args.ckpt default`` (or a
+shipped model's name: ``parts``, ``real``).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from radar2shape.errors import UserInputError
 from radar2shape.models.base import Reconstruction, ReconstructionModel
 from radar2shape.radar.spec import RadarSpec
 
-DEFAULT = "default"  # the model shipped in the package (radar2shape.pretrained.DEFAULT_MODEL)
+DEFAULT = "default"  # the default shipped model (radar2shape.pretrained.DEFAULT_NAME)
 
 
 def renormalise(radar: torch.Tensor, mask: torch.Tensor, source: RadarSpec, target: RadarSpec) -> torch.Tensor:
@@ -49,18 +50,22 @@ class CheckpointModel(ReconstructionModel):
     """Reconstructions of a trained RadarDiffusion or profile model checkpoint, unchanged.
 
     Args:
-        ckpt: checkpoint path, or ``"default"`` for the model shipped in the package.
+        ckpt: checkpoint path, ``"default"`` for the default shipped model, or a shipped model's name
+            (:data:`radar2shape.pretrained.SHIPPED_MODELS`).
         num_samples: K sampled shapes averaged per reconstruction (None: the checkpoint's own).
     """
 
     def __init__(self, ckpt: str = DEFAULT, num_samples: int | None = None) -> None:
         super().__init__()
         self.save_hyperparameters()
-        from radar2shape.pretrained import default_checkpoint, load_model
+        from radar2shape.pretrained import SHIPPED_MODELS, default_checkpoint, load_model, shipped_checkpoint
 
         if num_samples is not None and num_samples < 1:
             raise UserInputError(f"model.init_args.num_samples: expected a positive count, got {num_samples}")
-        self.ckpt_path = str(default_checkpoint() if ckpt == DEFAULT else ckpt)
+        if ckpt == DEFAULT:
+            self.ckpt_path = str(default_checkpoint())
+        else:
+            self.ckpt_path = str(shipped_checkpoint(ckpt) if ckpt in SHIPPED_MODELS else ckpt)
         # In a fresh context, as RadarDiffusion loads its Stage 1: the Lightning CLI builds this class
         # inside a context that would hand our hyperparameters to the loaded model too.
         inner = contextvars.Context().run(load_model, self.ckpt_path, "model.init_args.ckpt")
