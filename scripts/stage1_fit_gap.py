@@ -78,13 +78,15 @@ def report(run: Path, results: dict[str, dict[int, np.ndarray]]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--run", required=True, type=Path, help="a Stage-1 run folder of a sweep (fit/ and test/)")
+    parser.add_argument("--run", required=True, type=Path, help="a Stage-1 run folder of a sweep (fit/, and test/ when it was tested)")
     parser.add_argument("--train-shapes", type=int, default=100)
     parser.add_argument("--resolutions", type=int, nargs="+", default=[64])
     parser.add_argument("--out", required=True, type=Path)
     args = parser.parse_args()
     ckpt = args.run / "fit/version_0/checkpoints/last.ckpt"
-    config = args.run / "test/version_0/config.yaml"
+    # The DataModule's test protocol is in either saved config (a grid may skip Stage 1's own test).
+    config = next((c for c in (args.run / f"{stage}/version_0/config.yaml" for stage in ("test", "fit")) if c.is_file()),
+                  args.run / "fit/version_0/config.yaml")
     for path in (ckpt, config):
         if not path.is_file():
             raise SystemExit(f"error: {path}: not found (expected a finished Stage-1 run of a sweep)")

@@ -42,12 +42,15 @@ MODEL_TITLES = {
     "radar2shape_long_k8": "Radar2Shape, Stage 2 for 200 epochs, mean of 8 samples",
     "radar2shape_circ_steps12k": "Radar2Shape, circular roll padding, Stage 2 for 11,960 steps",
     "radar2shape_circ_steps12k_k8": "Radar2Shape, circular roll padding, Stage 2 for 11,960 steps, mean of 8 samples",
+    "radar2shape_s1long": "Radar2Shape, Stage 1 for 200 epochs, Stage 2 for 4,160 steps",
+    "radar2shape_s1long_steps12k": "Radar2Shape, Stage 1 for 200 epochs, Stage 2 for 11,960 steps",
     "diffusion_sdf": "Diffusion-SDF",
     "tmnet": "TMNet",
     "list": "LIST",
     "nearest": "Nearest neighbour",
     "mean_shape": "Mean shape",
     "shipped": "Radar2Shape, shipped parts-only model (not trained here)",
+    "real_model": "Radar2Shape, shipped real-target model (not trained here)",
     "radar2shape_lora": "Radar2Shape + LoRA (PO-SBR fine-tuned)",
 }
 
