@@ -1,4 +1,4 @@
-"""docs/results.md, the model card and README's table are generated from the committed reports: no drift."""
+"""docs/results.md, the model cards and README's table are generated from the committed reports: no drift."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from radar2shape.reporting import results
+from radar2shape.reporting import model_cards, results
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -20,7 +20,7 @@ def test_committed_pages_match_the_reports():
 
 
 def test_model_card_quotes_the_shipped_runs_per_shape_scores():
-    with (ROOT / results.TABLE1_MEDIUM_STAGE2 / "scores" / f"{results.SHIPPED_RUN}.csv").open() as handle:
+    with (ROOT / model_cards.TABLE1_MEDIUM_STAGE2 / "scores" / f"{model_cards.SHIPPED_RUN}.csv").open() as handle:
         iou = np.mean([float(row["iou"]) for row in csv.DictReader(handle)])
     card = (ROOT / results.MODEL_CARD).read_text()
     assert f"| full | {iou:.3f} |" in card
@@ -29,9 +29,9 @@ def test_model_card_quotes_the_shipped_runs_per_shape_scores():
 
 def test_real_model_card_quotes_its_runs_and_the_lookup():
     card = (ROOT / results.REAL_CARD).read_text()
-    scores = ROOT / results.REAL_REPORT / "scores"
+    scores = ROOT / model_cards.REAL_REPORT / "scores"
     for obs in ("full", "partial"):
-        for title, name in (("this model", f"{results.REAL_TEST}-{obs}-seed0"), ("radar lookup", f"nearest-{obs}")):
+        for title, name in (("this model", f"{model_cards.REAL_TEST}-{obs}-seed0"), ("radar lookup", f"nearest-{obs}")):
             with (scores / f"{name}.csv").open() as handle:
                 iou = np.mean([float(row["iou"]) for row in csv.DictReader(handle)])
             assert f"| {obs} | {title} | {iou:.3f} |" in card
