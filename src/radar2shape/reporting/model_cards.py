@@ -205,6 +205,7 @@ PACKAGED_REAL_CARD = Path("src/radar2shape/weights/MODEL_CARD_real.md")  # `reco
 REAL_GRID, REAL_RUN, REAL_TEST, REAL_STAGE1 = ("table1-real-long", "radar2shape_circ_steps12k_stage2-seed0",
                                                "radar2shape_circ_steps12k", "radar2shape_stage1")
 REAL_REPORT = TABLE1_REAL_LONG
+PER_CLASS_MODEL = "Radar2Shape (real model, shipped)"  # its column in the report's per_class.md
 NEAR_DUPLICATES_REAL = Path("reports/real/near_duplicates.md")
 REAL_ON_PARTS = Path("reports/real-model-on-parts")  # grid real-model-on-parts: this model on the parts test split
 
@@ -237,6 +238,20 @@ def _real_rows(root: Path) -> tuple[list[str], dict[str, list[dict]]]:
             if title == "this model":
                 per_shape[obs] = rows
     return lines, per_shape
+
+
+def _per_class_line(root: Path) -> str:
+    """The classes where the lookup beats this model on IoU, from the report's per-class table."""
+    path = REAL_REPORT / "per_class.md"
+    table = (root / path).read_text().split("### IoU ↑", 1)[1].split("###", 1)[0]
+    rows = [[c.strip().strip("*") for c in line.strip().strip("|").split("|")] for line in table.splitlines()
+            if line.startswith("| ") and not line.startswith("| class")]
+    header = next(line for line in table.splitlines() if line.startswith("| class"))
+    names = [c.strip() for c in header.strip().strip("|").split("|")]
+    model, lookup = names.index(PER_CLASS_MODEL), names.index("Nearest neighbour")
+    behind = [r[0].rsplit(" (", 1)[0] for r in rows if float(r[lookup]) > float(r[model])]
+    return (f"- Some classes: the radar lookup scores a higher IoU on {len(behind)} of the {len(rows)} classes "
+            f"({', '.join(behind)}; [per_class.md]({link(path)})).")
 
 
 def real_model_card(root: Path, checkpoint: Path) -> str:
@@ -287,6 +302,7 @@ def real_model_card(root: Path, checkpoint: Path) -> str:
         f"The partial Chamfer mean is dominated by one object ({max(partial_cd):.0f}); the median is "
         f"{statistics.median(partial_cd):.2f}." + _yaw_line(root, REAL_REPORT / "yaw_check.md"), "",
         "## What it does not know",
+        _per_class_line(root),
         f"- Surface detail: its F-score at 1 % ({full['fscore_1pct_mean']:.3f}: the share of surface points within "
         f"1 % of the cube of the true surface) is below the lookup's ({lookup_f:.3f}) although its IoU and Chamfer "
         "are better: it gets the volume closer and the fine surface less often. Its Stage 1 reaches IoU "

@@ -115,8 +115,9 @@ def table1_real_long(root: Path) -> str:
         "The circular-padding row above with Stage 2 trained for 11,960 steps instead of 1,560 (the shipped parts "
         "model's step count and recipe: encoder stem stride 2, learning rate halved every 3,000 steps), on a Stage 1 "
         "retrained with the same command; the lookup rerun beside it. Paired with the rows above: "
-        f"[paired.md]({link(TABLE1_REAL_LONG / 'paired.md')}).",
-        "Diagnostics:")
+        f"[paired.md]({link(TABLE1_REAL_LONG / 'paired.md')}). This run is the shipped `real` model "
+        "(docs/model_card_real.md).",
+        "Diagnostics:", f"Per class: [per_class.md]({link(TABLE1_REAL_LONG / 'per_class.md')}).")
 
 
 TABLE1_REAL_S1LONG = Path("reports/table1-real-s1long")
