@@ -7,7 +7,7 @@
 Each ``--run LABEL SCORES.csv`` is a per-shape score file of a report (``scores/<run>.csv``, one row
 per test shape with its class ``label``); ``--data`` is the dataset whose manifest names the
 classes. One table per metric: rows = classes (with the number of test shapes), columns = runs,
-the best run of each class in bold. Bad input is one ``error:`` line.
+the best run of each class in bold; runs whose file has a Stage-1 ceiling column get its table too. Bad input is one ``error:`` line.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from radar2shape.atomic import write_text_atomic
 from radar2shape.reporting import read_scores
 
 METRICS = (("iou", "IoU ↑", True), ("fscore_1pct", "F-score@1% ↑", True), ("chamfer_l2_x1e3", "CD x10^3 ↓", False))
+CEILING = "ceiling_iou"  # a latent model's per-shape Stage-1 ceiling (docs/metrics.md); a table when present
 
 
 def class_means(rows: list[dict], metric: str) -> dict[int, tuple[float, int]]:
@@ -71,6 +72,10 @@ def main(argv: list[str] | None = None) -> int:
              "`scripts/per_class_scores.py` from the report's per-shape scores:", "",
              *(f"- {label}: `{path}`" for label, path in args.run), ""]
     parts += [table(runs, classes, key, header, higher) + "\n" for key, header, higher in METRICS]
+    latent = {label: rows for label, rows in runs.items() if rows and CEILING in rows[0]}
+    if latent:  # where Stage 2 stands against what its Stage 1 can represent, class by class
+        parts.append(table(latent, classes, CEILING, "Stage-1 ceiling IoU ↑ (latent models: their Stage 1 "
+                           "decoding the true shapes)", True) + "\n")
     write_text_atomic(args.out, "\n".join(parts))
     print(f"wrote {args.out}")
     return 0

@@ -31,6 +31,22 @@ def test_class_means_and_best_per_class(tmp_path):
     assert "| ship (1) | 0.900 | n/a |" in text  # an undefined score is left out, not counted as 0
 
 
+def test_ceiling_table_lists_only_the_runs_that_have_one(tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "manifest.json").write_text(json.dumps({"classes": ["airliner", "ship"]}))
+    latent = tmp_path / "latent.csv"
+    latent.write_text("index,label,chamfer_l2_x1e3,iou,fscore_1pct,ceiling_iou\n0,0,1.0,0.2,0.5,0.25\n"
+                      "1,0,1.0,0.4,0.5,0.45\n2,1,1.0,0.3,0.5,0.7\n")
+    lookup = scores(tmp_path / "lookup.csv", [(0, 0, 0.5), (1, 0, 0.5), (2, 1, 0.1)])
+    out = tmp_path / "per_class.md"
+    assert per_class_scores.main(["--data", str(data), "--run", "Model", str(latent), "--run", "Lookup", str(lookup),
+                                  "--out", str(out)]) == 0
+    ceiling = out.read_text().split("### Stage-1 ceiling IoU", 1)[1]
+    assert "| class (test shapes) | Model |" in ceiling and "Lookup" not in ceiling
+    assert "| airliner (2) | 0.350 |" in ceiling and "| ship (1) | 0.700 |" in ceiling  # (0.25 + 0.45) / 2
+
+
 def test_missing_manifest_is_one_line(tmp_path, capsys):
     assert per_class_scores.main(["--data", str(tmp_path), "--run", "A", "x.csv", "--out", str(tmp_path / "o.md")]) == 2
     err = capsys.readouterr().err.strip()
