@@ -51,6 +51,12 @@ def test_optimizer_and_schedule_come_from_hyperparameters():
     assert scheduler.step_size == 7 and scheduler.gamma == 0.25
 
 
+def test_sdf_vae_takes_the_base_weight_average():
+    assert SDFVAE(**TINY_VAE, ema_decay=0.99).hparams.ema_decay == 0.99
+    with pytest.raises(UserInputError, match=r"SDFVAE: ema_decay must be in \[0, 1\), got 1.5"):
+        SDFVAE(**TINY_VAE, ema_decay=1.5).configure_callbacks()
+
+
 def test_sdf_vae_evaluates_the_posterior_mean():
     """Training samples the posterior (losses vary); validation/test decode its mean (they repeat)."""
     torch.manual_seed(0)

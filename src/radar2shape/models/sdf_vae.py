@@ -86,6 +86,8 @@ class SDFVAE(ReconstructionModel):
         level_dropout: probability that a training sample is decoded from its coarsest levels
             only (:func:`coarse_level_mask`; 0 = the paper's plain objective).
         lr, weight_decay: Adam settings. lr_decay_steps/lr_decay: step decay (0 steps: constant).
+        ema_decay: weight averaging while fitting (0: off; the base model's): validation, tests
+            and checkpoints use the average, which steadies a decoder whose IoU swings between checks.
         mesh_resolution: marching-cubes grid size of :meth:`reconstruct`; mesh_batch_points:
             queries per decoder call while extracting meshes.
     """
@@ -119,6 +121,7 @@ class SDFVAE(ReconstructionModel):
         weight_decay: float = 0.0,
         lr_decay_steps: int = 0,
         lr_decay: float = 0.5,
+        ema_decay: float = 0.0,
         mesh_resolution: int = 128,
         mesh_batch_points: int = 65536,
     ) -> None:
