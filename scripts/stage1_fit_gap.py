@@ -84,9 +84,9 @@ def main() -> None:
     parser.add_argument("--out", required=True, type=Path)
     args = parser.parse_args()
     ckpt = args.run / "fit/version_0/checkpoints/last.ckpt"
-    # The DataModule's test protocol is in either saved config (a grid may skip Stage 1's own test).
-    config = next((c for c in (args.run / f"{stage}/version_0/config.yaml" for stage in ("test", "fit")) if c.is_file()),
-                  args.run / "fit/version_0/config.yaml")
+    config = args.run / "test/version_0/config.yaml"
+    if not config.is_file():  # a grid may skip Stage 1's own test; the fit config holds the same DataModule
+        config = args.run / "fit/version_0/config.yaml"
     for path in (ckpt, config):
         if not path.is_file():
             raise SystemExit(f"error: {path}: not found (expected a finished Stage-1 run of a sweep)")

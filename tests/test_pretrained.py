@@ -123,7 +123,7 @@ def test_float16_export_rounds_each_weight_to_half_precision(tiny, tmp_path):
 
 
 def test_reconstruct_without_ckpt_uses_the_default_model(tiny, tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(pretrained, "DEFAULT_MODEL", tiny.exported)
+    monkeypatch.setitem(pretrained.SHIPPED_MODELS, "parts", tiny.exported)
     explicit, default = tmp_path / "explicit.obj", tmp_path / "default.obj"
     common = ["--radar", str(tiny.radar), "--seed", "5"]
     assert main(["reconstruct", "--ckpt", str(tiny.exported), *common, "--out", str(explicit)]) == 0
@@ -139,7 +139,7 @@ def test_reconstruct_without_ckpt_uses_the_default_model(tiny, tmp_path, monkeyp
 
 def test_reconstruct_without_ckpt_and_no_default_model(tiny, tmp_path, monkeypatch, capsys):
     missing = tmp_path / "weights" / "radar2shape_parts_medium.ckpt"
-    monkeypatch.setattr(pretrained, "DEFAULT_MODEL", missing)
+    monkeypatch.setitem(pretrained.SHIPPED_MODELS, "parts", missing)
     outputs = tmp_path / "out"
     code = main(["reconstruct", "--radar", str(tiny.radar), "--out", str(outputs / "m.obj"),
                  "--png", str(outputs / "m.png")])
@@ -152,7 +152,7 @@ def test_reconstruct_without_ckpt_and_no_default_model(tiny, tmp_path, monkeypat
 def test_model_real_reconstructs_with_its_own_file(tiny, tmp_path, monkeypatch, capsys):
     """--model real reads SHIPPED_MODELS['real'], not the default: a missing default does not matter."""
     monkeypatch.setitem(pretrained.SHIPPED_MODELS, "real", tiny.exported)
-    monkeypatch.setattr(pretrained, "DEFAULT_MODEL", tmp_path / "absent.ckpt")
+    monkeypatch.setitem(pretrained.SHIPPED_MODELS, "parts", tmp_path / "absent.ckpt")
     explicit, named = tmp_path / "explicit.obj", tmp_path / "named.obj"
     common = ["--radar", str(tiny.radar), "--seed", "2"]
     assert main(["reconstruct", "--ckpt", str(tiny.exported), *common, "--out", str(explicit)]) == 0

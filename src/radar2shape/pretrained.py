@@ -166,9 +166,9 @@ def _check_name(name: str, label: str) -> None:
 
 
 def card_path(name: str = DEFAULT_NAME) -> Path:
-    """Where shipped model ``name``'s card is installed (:data:`MODEL_CARD` for the default)."""
+    """Where shipped model ``name``'s card is installed."""
     _check_name(name, "--about")
-    return MODEL_CARD if name == DEFAULT_NAME else MODEL_CARDS[name]
+    return MODEL_CARDS[name]
 
 
 def model_card(name: str = DEFAULT_NAME) -> str:
@@ -180,12 +180,9 @@ def model_card(name: str = DEFAULT_NAME) -> str:
 
 
 def shipped_checkpoint(name: str = DEFAULT_NAME) -> Path:
-    """Shipped model ``name``'s file when it is installed; otherwise one line telling the user to pass ``--ckpt``.
-
-    The default is read from :data:`DEFAULT_MODEL` at call time, so that tests can point it elsewhere.
-    """
+    """Shipped model ``name``'s file when it is installed; otherwise one line telling the user to pass ``--ckpt``."""
     _check_name(name, "--model")
-    path = Path(DEFAULT_MODEL if name == DEFAULT_NAME else SHIPPED_MODELS[name])
+    path = Path(SHIPPED_MODELS[name])
     if not path.is_file():
         what = "--ckpt: no default model" if name == DEFAULT_NAME else f"--model {name}: no such model"
         raise UserInputError(f"{what} is installed (expected {path}); "
@@ -194,7 +191,7 @@ def shipped_checkpoint(name: str = DEFAULT_NAME) -> Path:
 
 
 def default_checkpoint() -> Path:
-    """The default shipped model's file (:data:`DEFAULT_MODEL`), or one line telling the user to pass ``--ckpt``."""
+    """The default shipped model's file, or one line telling the user to pass ``--ckpt``."""
     return shipped_checkpoint(DEFAULT_NAME)
 
 

@@ -58,14 +58,12 @@ class CheckpointModel(ReconstructionModel):
     def __init__(self, ckpt: str = DEFAULT, num_samples: int | None = None) -> None:
         super().__init__()
         self.save_hyperparameters()
-        from radar2shape.pretrained import SHIPPED_MODELS, default_checkpoint, load_model, shipped_checkpoint
+        from radar2shape.pretrained import DEFAULT_NAME, SHIPPED_MODELS, load_model, shipped_checkpoint
 
         if num_samples is not None and num_samples < 1:
             raise UserInputError(f"model.init_args.num_samples: expected a positive count, got {num_samples}")
-        if ckpt == DEFAULT:
-            self.ckpt_path = str(default_checkpoint())
-        else:
-            self.ckpt_path = str(shipped_checkpoint(ckpt) if ckpt in SHIPPED_MODELS else ckpt)
+        name = DEFAULT_NAME if ckpt == DEFAULT else ckpt
+        self.ckpt_path = str(shipped_checkpoint(name) if name in SHIPPED_MODELS else ckpt)
         # In a fresh context, as RadarDiffusion loads its Stage 1: the Lightning CLI builds this class
         # inside a context that would hand our hyperparameters to the loaded model too.
         inner = contextvars.Context().run(load_model, self.ckpt_path, "model.init_args.ckpt")
