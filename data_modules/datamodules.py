@@ -68,6 +68,8 @@ class ShapeDataModule(ReconstructionDataModule):
         roll_augment: turn each training sample about z by a random whole number of roll steps and
             mirror it with probability 1/2 (``data_modules.augment``): exact, since the response
             only moves along roll, so one record gives 2R samples (the 3D data only).
+        test_split: the split ``radar2shape test`` scores ("val" chooses a decoding setting, such as
+            a surface level, without looking at the test split).
     """
 
     dataset_class = RecordDataset
@@ -79,7 +81,7 @@ class ShapeDataModule(ReconstructionDataModule):
                  train_noise_db: float | tuple[float, float] | None = None, test_noise_db: float | None = None,
                  points: dict[str, dict[str, int]] | None = None, pin_memory: bool = False,
                  mask_rule: str = "per_axis", noise_reference: str = "absolute", cache_records: bool = False,
-                 skip_bad_records: bool = False, roll_augment: bool = False):
+                 skip_bad_records: bool = False, roll_augment: bool = False, test_split: str = "test"):
         super().__init__()
         self.save_hyperparameters()
         self.root = Path(root)
@@ -91,6 +93,8 @@ class ShapeDataModule(ReconstructionDataModule):
         self.datasets: dict[str, RecordDataset] = {}
         self.skipped: Counter = Counter()  # substituted items per split since the last epoch report
         _keep_range("test_keep", test_keep)  # train_keep: checked by transform("train")
+        if test_split not in ("val", "test"):
+            raise UserInputError(f"test_split: expected 'val' or 'test', got {test_split!r}")
         if roll_augment and self.roll_symmetric:
             raise UserInputError("roll_augment: roll-symmetric data has one roll angle; turning it changes nothing")
         for split in ("train", "test"):
@@ -170,7 +174,7 @@ class ShapeDataModule(ReconstructionDataModule):
         return self._loader("val")
 
     def test_dataloader(self) -> DataLoader:
-        return self._loader("test")
+        return self._loader(self.hparams.test_split)
 
     def predict_dataloader(self) -> DataLoader:
         return self._loader("test")

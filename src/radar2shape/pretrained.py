@@ -135,14 +135,16 @@ def _serialise(checkpoint: dict) -> bytes:
 
 
 def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None, max_mb: float | None = None,
-                      *, src_label: str = "--ckpt", dst_label: str = "--out") -> float:
+                      surface_level: float | None = None, *, src_label: str = "--ckpt", dst_label: str = "--out") -> float:
     """Write the inference-only copy of RadarDiffusion checkpoint ``src`` to ``dst``; returns its size in MB.
 
     Kept: :data:`EXPORT_KEYS` (weights, hyperparameters, radar spec, Lightning version); dropped:
     optimizer and scheduler states, loops, callbacks, DataModule settings. ``dtype`` (one of
     :data:`DTYPES`, None = as trained) stores floating-point weights in a smaller precision.
-    ``max_mb`` refuses a result larger than that, before anything is written. The file is written
-    atomically; a bad source, destination, dtype or size is one ``UserInputError`` line.
+    ``max_mb`` refuses a result larger than that, before anything is written. ``surface_level``
+    (None: the source's) sets the level its Stage 1 meshes (``SDFVAE.surface_level``), chosen on the
+    validation split. The file is written atomically; a bad source, destination, dtype or size is
+    one ``UserInputError`` line.
     """
     src, dst = Path(src), Path(dst)
     if dtype is not None and dtype not in DTYPES:
@@ -152,7 +154,13 @@ def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None
     check_output_path(dst, dst_label, (".ckpt",))
     if dst.resolve() == src.resolve():
         raise UserInputError(f"{dst_label}: {dst} is the source checkpoint ({src_label}); expected a separate file")
-    data = _serialise(minimal_checkpoint(_read_source(src, src_label), dtype))
+    checkpoint = minimal_checkpoint(_read_source(src, src_label), dtype)
+    if surface_level is not None:
+        stage1 = checkpoint.get("hyper_parameters", {}).get("stage1_hparams")
+        if stage1 is None:
+            raise UserInputError(f"--surface-level: {src} has no Stage 1 (not a RadarDiffusion checkpoint)")
+        stage1["surface_level"] = float(surface_level)
+    data = _serialise(checkpoint)
     if max_mb is not None and size_mb(len(data)) > max_mb:
         raise UserInputError(f"{dst_label}: the exported model is {size_mb(len(data)):.1f} MB, over the "
                              f"{max_mb:g} MB limit (try --dtype float16 or a smaller model); nothing written")

@@ -199,10 +199,23 @@ def test_peak_noise_option_reaches_the_batches(parts_dataset, frusta_dataset):
     ({"test_keep": 0.0}, "test_keep: expected a kept fraction"),
     ({"train_keep": [0.8, 0.3]}, "train_keep: expected a kept fraction"),
     ({"observability": "half"}, "observability: expected 'full' or 'partial'"),
+    ({"test_split": "train"}, "test_split: expected 'val' or 'test', got 'train'"),
 ])
 def test_bad_observability_and_noise_options_name_the_option(parts_dataset, option, match):
     with pytest.raises(UserInputError, match=match):
         _module(parts_dataset, **option)
+
+
+def test_test_split_val_scores_the_validation_records(parts_dataset):
+    """``test_split='val'``: ``radar2shape test`` reads the validation records, with the test points and mask."""
+    on_val, on_test = _module(parts_dataset, test_split="val"), _module(parts_dataset)
+    val_items = [item for batch in on_val.test_dataloader() for item in batch["index"].tolist()]
+    assert len(val_items) == len(on_val.records("val")) != 0
+    first_val = next(iter(_module(parts_dataset).val_dataloader()))
+    first = next(iter(on_val.test_dataloader()))
+    assert set(first) == set(next(iter(on_test.test_dataloader())))  # eval / occ points, as a test batch has
+    torch.testing.assert_close(first["occ_inside"], first_val["occ_inside"])
+    torch.testing.assert_close(first["radar"], first_val["radar"])
 
 
 def test_cached_records_give_the_same_items_and_read_each_file_once(parts_dataset, tmp_path):

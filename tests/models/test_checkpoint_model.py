@@ -55,6 +55,15 @@ def test_scores_the_checkpoint_exactly_as_reconstruct_does(tiny, single_thread):
         np.testing.assert_allclose(a.mesh.vertices, b.mesh.vertices, atol=1e-4)
 
 
+def test_surface_level_override_moves_the_meshed_level(tiny, single_thread):  # noqa: F811
+    """``surface_level`` reaches Stage 1: the SDF the model meshes is the stored one minus the level."""
+    plain, shifted = CheckpointModel(ckpt=str(tiny.exported)), CheckpointModel(ckpt=str(tiny.exported), surface_level=0.01)
+    assert plain.inner.stage1.hparams.surface_level == 0.0 and shifted.inner.stage1.hparams.surface_level == 0.01
+    h = torch.zeros(2, plain.inner.n_levels, plain.inner.latent_dim)
+    points = torch.rand(7, 3) - 0.5
+    torch.testing.assert_close(shifted.inner.sdf_function(h)(points), plain.inner.sdf_function(h)(points) - 0.01)
+
+
 def test_fit_is_refused(tiny):  # noqa: F811
     wrapped = CheckpointModel(ckpt=str(tiny.exported))
     with pytest.raises(UserInputError, match="radar2shape test"):

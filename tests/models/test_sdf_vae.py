@@ -129,6 +129,22 @@ def test_reconstruct_returns_one_mesh_per_sample(model):
     assert len(recs) == 2 and all(r.mesh is not None for r in recs)
 
 
+def test_surface_level_meshes_that_level_of_the_decoded_sdf(model, monkeypatch):
+    """A decoder returning a sphere's SDF |p| - 0.3 meshed at level 0.05 gives the sphere of radius 0.35."""
+    monkeypatch.setattr(model.decoder, "query", lambda planes, q: q.norm(dim=-1) - 0.3)
+    h = torch.zeros(1, len(TINY["resolutions"]), TINY["latent_dim"])
+    volumes = {}
+    for level in (0.0, 0.05):
+        model.hparams.surface_level = level
+        mesh = model.extract_mesh(h, resolution=48)[0]
+        volumes[level] = mesh.volume
+        radii = np.linalg.norm(mesh.vertices, axis=1)
+        assert radii.mean() == pytest.approx(0.3 + level, abs=2e-3)
+    assert volumes[0.05] == pytest.approx(4 / 3 * np.pi * 0.35 ** 3, rel=0.02)
+    queries = torch.rand(1, 5, 3)
+    torch.testing.assert_close(model.surface_sdf([], queries), queries.norm(dim=-1) - 0.35)
+
+
 def test_checkpoint_round_trip_with_weights_only(model, tmp_path):
     data = DataLoader(DictDataset(random_batch(b=2)), batch_size=2)
     run = trainer(max_steps=1, limit_val_batches=0)

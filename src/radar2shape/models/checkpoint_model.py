@@ -53,9 +53,11 @@ class CheckpointModel(ReconstructionModel):
         ckpt: checkpoint path, ``"default"`` for the default shipped model, or a shipped model's name
             (:data:`radar2shape.pretrained.SHIPPED_MODELS`).
         num_samples: K sampled shapes averaged per reconstruction (None: the checkpoint's own).
+        surface_level: the decoded SDF level meshed as the surface (None: the checkpoint's own;
+            latent models only): how a level is tried on the validation split before it is exported.
     """
 
-    def __init__(self, ckpt: str = DEFAULT, num_samples: int | None = None) -> None:
+    def __init__(self, ckpt: str = DEFAULT, num_samples: int | None = None, surface_level: float | None = None) -> None:
         super().__init__()
         self.save_hyperparameters()
         from radar2shape.pretrained import DEFAULT_NAME, SHIPPED_MODELS, load_model, shipped_checkpoint
@@ -69,6 +71,12 @@ class CheckpointModel(ReconstructionModel):
         inner = contextvars.Context().run(load_model, self.ckpt_path, "model.init_args.ckpt")
         if num_samples is not None:
             inner.hparams.num_samples = int(num_samples)
+        if surface_level is not None:
+            stage1 = getattr(inner, "stage1", None)
+            if stage1 is None:
+                raise UserInputError(f"model.init_args.surface_level: {self.ckpt_path} is a {type(inner).__name__}, "
+                                     "which meshes no latent SDF; only Radar2Shape (RadarDiffusion) checkpoints take it")
+            stage1.hparams.surface_level = float(surface_level)
         self.inner = inner.requires_grad_(False)
         self._data_spec: RadarSpec | None = None
 

@@ -367,13 +367,13 @@ class RadarDiffusion(ReconstructionModel):
         return self.standardiser.inverse(x).reshape(-1, k, self.n_levels, self.latent_dim)
 
     def sdf_function(self, h: torch.Tensor):
-        """``points [N, 3] -> SDF [K, N]`` for latents ``h [K, L, Z]``, planes decoded once."""
+        """``points [N, 3] -> SDF [K, N]`` (relative to Stage 1's surface level) for latents ``h [K, L, Z]``, planes decoded once."""
         decoder = self.stage1.decoder
         planes = decoder.decode_planes(h)
 
         def sdf(points: torch.Tensor) -> torch.Tensor:
             q = torch.as_tensor(points, dtype=planes[0].dtype, device=planes[0].device)
-            return decoder.query(planes, q[None].expand(h.shape[0], -1, -1))
+            return self.stage1.surface_sdf(planes, q[None].expand(h.shape[0], -1, -1))
 
         return sdf
 

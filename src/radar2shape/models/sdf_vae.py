@@ -90,6 +90,9 @@ class SDFVAE(ReconstructionModel):
             and checkpoints use the average, which steadies a decoder whose IoU swings between checks.
         mesh_resolution: marching-cubes grid size of :meth:`reconstruct`; mesh_batch_points:
             queries per decoder call while extracting meshes.
+        surface_level: the decoded SDF value meshed as the surface (0: the zero level set the loss
+            trains). A decoder that smooths thin parts leaves them barely inside; a small positive
+            level, chosen on the validation split, keeps them. Only meshing reads it, not training.
     """
 
     optimizer_class = torch.optim.Adam
@@ -124,6 +127,7 @@ class SDFVAE(ReconstructionModel):
         ema_decay: float = 0.0,
         mesh_resolution: int = 128,
         mesh_batch_points: int = 65536,
+        surface_level: float = 0.0,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -144,6 +148,14 @@ class SDFVAE(ReconstructionModel):
         """Latents ``[B, L, Z]`` and query points ``[B, Q, 3]`` -> SDF ``[B, Q]`` (negative inside)."""
         return self.decoder(h, queries)
 
+    def surface_sdf(self, planes: list[torch.Tensor], queries: torch.Tensor) -> torch.Tensor:
+        """Decoded SDF ``[B, Q]`` shifted so that its zero level is the meshed surface (``surface_level``).
+
+        Everything that meshes or labels occupancy reads this, never the raw decoder, so the level
+        set chosen for a model is the one its meshes, IoU and uncertainty all see.
+        """
+        return self.decoder.query(planes, queries) - float(self.hparams.surface_level)
+
     @torch.no_grad()
     def extract_mesh(self, h: torch.Tensor, resolution: int | None = None) -> list[trimesh.Trimesh]:
         """One marching-cubes mesh per latent of ``h [B, L, Z]`` over ``[-bound, bound]^3``."""
@@ -156,7 +168,7 @@ class SDFVAE(ReconstructionModel):
             planes = [p[None] for p in planes]
 
             def sdf_fn(points: torch.Tensor, planes=planes) -> torch.Tensor:
-                return self.decoder.query(planes, points[None].to(planes[0].dtype))[0]
+                return self.surface_sdf(planes, points[None].to(planes[0].dtype))[0]
 
             meshes.append(extract_mesh(sdf_fn, resolution, (-bound, bound), self.hparams.mesh_batch_points, self.device,
                                        distance_limit=self.hparams.truncation or None))

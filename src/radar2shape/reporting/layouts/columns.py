@@ -57,6 +57,7 @@ MODEL_TITLES = {
 
 GROUP_TITLES = {
     "full": "full",
+    "val": "validation split, full",
     "partial": "partial",
     "full-sbr": "PO-SBR test, full",
     "partial-sbr": "PO-SBR test, partial",
