@@ -68,8 +68,8 @@ class ShapeDataModule(ReconstructionDataModule):
         roll_augment: turn each training sample about z by a random whole number of roll steps and
             mirror it with probability 1/2 (``data_modules.augment``): exact, since the response
             only moves along roll, so one record gives 2R samples (the 3D data only).
-        test_split: the split ``radar2shape test`` scores ("val" chooses a decoding setting, such as
-            a surface level, without looking at the test split).
+        test_split: the split ``radar2shape test`` scores, with the test split's points ("val" chooses
+            a decoding setting, such as a surface level, without looking at the test split).
     """
 
     dataset_class = RecordDataset
@@ -90,7 +90,7 @@ class ShapeDataModule(ReconstructionDataModule):
         self.num_classes = len(self.class_names)
         self.points = {split: {**DEFAULT_POINTS[split], **((points or {}).get(split) or {})} for split in DEFAULT_POINTS}
         self._spec = dataset_radar_spec(self.root, self.manifest, float(floor_db), self.roll_symmetric)
-        self.datasets: dict[str, RecordDataset] = {}
+        self.datasets: dict[tuple[str, str], RecordDataset] = {}  # (split, split whose points it samples)
         self.skipped: Counter = Counter()  # substituted items per split since the last epoch report
         _keep_range("test_keep", test_keep)  # train_keep: checked by transform("train")
         if test_split not in ("val", "test"):
@@ -130,21 +130,23 @@ class ShapeDataModule(ReconstructionDataModule):
             mask_rule=hp.mask_rule, noise_reference=hp.noise_reference,
         )
 
-    def dataset(self, split: str) -> RecordDataset:
-        """The dataset of ``split`` (built on first use)."""
-        if split not in self.datasets:
+    def dataset(self, split: str, points: str | None = None) -> RecordDataset:
+        """The dataset of ``split`` (built on first use), with the point subsets of split ``points``
+        (default: its own; the test split's when the test loader serves validation records)."""
+        points = points or split
+        if (split, points) not in self.datasets:
             records = self.records(split)
             if len(records) == 0:
                 raise UserInputError(f"{self.root}: split {split!r} has no records")
-            self.datasets[split] = self.dataset_class(
-                records, self.manifest["labels"][split], self.transform(split), self.points[split],
+            self.datasets[split, points] = self.dataset_class(
+                records, self.manifest["labels"][split], self.transform(split), self.points[points],
                 train=split == "train", seed=self.hparams.seed, cache=self.hparams.cache_records,
                 skip_bad=self.hparams.skip_bad_records, roll_augment=self.hparams.roll_augment and split == "train",
             )
-        return self.datasets[split]
+        return self.datasets[split, points]
 
-    def _loader(self, split: str) -> DataLoader:
-        dataset = self.dataset(split)
+    def _loader(self, split: str, points: str | None = None) -> DataLoader:
+        dataset = self.dataset(split, points)
         workers = self.hparams.num_workers
         return DataLoader(
             dataset, batch_size=self.hparams.batch_size, num_workers=workers,
@@ -174,7 +176,7 @@ class ShapeDataModule(ReconstructionDataModule):
         return self._loader("val")
 
     def test_dataloader(self) -> DataLoader:
-        return self._loader(self.hparams.test_split)
+        return self._loader(self.hparams.test_split, "test")
 
     def predict_dataloader(self) -> DataLoader:
         return self._loader("test")

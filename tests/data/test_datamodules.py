@@ -208,12 +208,15 @@ def test_bad_observability_and_noise_options_name_the_option(parts_dataset, opti
 
 def test_test_split_val_scores_the_validation_records(parts_dataset):
     """``test_split='val'``: ``radar2shape test`` reads the validation records, with the test points and mask."""
-    on_val, on_test = _module(parts_dataset, test_split="val"), _module(parts_dataset)
+    fewer = {**SMALL_POINTS, "val": {"surface": 32, "sdf": 64, "eval": 50, "occ": 100}}
+    on_val = ShapeDataModule(str(parts_dataset), batch_size=2, points=fewer, test_split="val")
+    on_test = _module(parts_dataset)
     val_items = [item for batch in on_val.test_dataloader() for item in batch["index"].tolist()]
     assert len(val_items) == len(on_val.records("val")) != 0
-    first_val = next(iter(_module(parts_dataset).val_dataloader()))
+    first_val = next(iter(_module(parts_dataset).val_dataloader()))  # the val records with the test's point counts
     first = next(iter(on_val.test_dataloader()))
-    assert set(first) == set(next(iter(on_test.test_dataloader())))  # eval / occ points, as a test batch has
+    assert {k: v.shape for k, v in first.items()} == {k: v.shape for k, v in next(iter(on_test.test_dataloader())).items()}
+    assert next(iter(on_val.val_dataloader()))["occ_points"].shape == (2, 100, 3)  # validation keeps its own
     torch.testing.assert_close(first["occ_inside"], first_val["occ_inside"])
     torch.testing.assert_close(first["radar"], first_val["radar"])
 
