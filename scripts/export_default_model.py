@@ -1,7 +1,7 @@
 """Export a trained RadarDiffusion checkpoint as the model shipped inside the package.
 
     python scripts/export_default_model.py --ckpt RUN/checkpoints/last.ckpt \
-        [--out src/radar2shape/weights/radar2shape_parts_medium.ckpt] [--dtype float16] [--max-mb 25] [--surface-level 0.002]
+        [--out src/radar2shape/weights/radar2shape_parts_medium.ckpt] [--dtype float16] [--max-mb 25] [--surface-level 0.002] [--mesh-resolution 128]
 
 Writes the inference-only copy (``radar2shape.pretrained.export_checkpoint``: weights,
 hyperparameters, radar spec; no optimizer, loop or callback state), refuses a result over
@@ -30,6 +30,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--dtype", choices=DTYPES, help="store the weights in this precision (default: as trained)")
     parser.add_argument("--surface-level", type=float,
                         help="SDF level Stage 1 meshes as the surface (default: the checkpoint's; chosen on validation)")
+    parser.add_argument("--mesh-resolution", type=int,
+                        help="marching-cubes grid of its reconstructions (default: the checkpoint's; chosen on validation)")
     parser.add_argument("--max-mb", type=float, default=MAX_MB, help=f"refuse a larger export (default {MAX_MB:g} MB)")
     return parser.parse_args(argv)
 
@@ -55,7 +57,8 @@ def export_and_check(args: argparse.Namespace) -> tuple[float, str]:
     if args.out.resolve() == args.ckpt.resolve():
         raise UserInputError(f"--out: {args.out} is the source checkpoint (--ckpt); expected a separate file")
     with atomic_path(args.out) as temp:
-        size = export_checkpoint(args.ckpt, temp, args.dtype, args.max_mb, args.surface_level)
+        size = export_checkpoint(args.ckpt, temp, args.dtype, args.max_mb, args.surface_level,
+                                 args.mesh_resolution)
         return size, describe(temp)
 
 

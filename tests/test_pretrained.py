@@ -122,12 +122,14 @@ def test_float16_export_rounds_each_weight_to_half_precision(tiny, tmp_path):
     assert all(p.dtype == torch.float32 for p in model.parameters())
 
 
-def test_export_with_a_surface_level_meshes_that_level(tiny, tmp_path):
-    """``--surface-level``: the exported model's SDF is the source's minus the level; weights unchanged."""
+def test_export_with_a_surface_level_and_grid_meshes_them(tiny, tmp_path):
+    """``--surface-level`` / ``--mesh-resolution``: the exported model's SDF is the source's minus the
+    level, meshed on that grid; weights unchanged."""
     leveled = tmp_path / "leveled.ckpt"
-    export_checkpoint(tiny.source, leveled, surface_level=0.004)
+    export_checkpoint(tiny.source, leveled, surface_level=0.004, mesh_resolution=40)
     source, shifted = load_model(tiny.source), load_model(leveled)
     assert shifted.stage1.hparams.surface_level == 0.004 and source.stage1.hparams.surface_level == 0.0
+    assert shifted.hparams.mesh_resolution == 40 != source.hparams.mesh_resolution
     h = torch.randn(2, source.n_levels, source.latent_dim)
     points = torch.rand(9, 3) - 0.5
     torch.testing.assert_close(shifted.sdf_function(h)(points), source.sdf_function(h)(points) - 0.004)

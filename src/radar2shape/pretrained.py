@@ -135,7 +135,7 @@ def _serialise(checkpoint: dict) -> bytes:
 
 
 def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None, max_mb: float | None = None,
-                      surface_level: float | None = None, *, src_label: str = "--ckpt", dst_label: str = "--out") -> float:
+                      surface_level: float | None = None, mesh_resolution: int | None = None, *, src_label: str = "--ckpt", dst_label: str = "--out") -> float:
     """Write the inference-only copy of RadarDiffusion checkpoint ``src`` to ``dst``; returns its size in MB.
 
     Kept: :data:`EXPORT_KEYS` (weights, hyperparameters, radar spec, Lightning version); dropped:
@@ -143,7 +143,8 @@ def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None
     :data:`DTYPES`, None = as trained) stores floating-point weights in a smaller precision.
     ``max_mb`` refuses a result larger than that, before anything is written. ``surface_level``
     (None: the source's) sets the level its Stage 1 meshes (``SDFVAE.surface_level``), chosen on the
-    validation split. The file is written atomically; a bad source, destination, dtype or size is
+    validation split; ``mesh_resolution`` (None: the source's) its marching-cubes grid. The file is
+    written atomically; a bad source, destination, dtype or size is
     one ``UserInputError`` line.
     """
     src, dst = Path(src), Path(dst)
@@ -160,6 +161,10 @@ def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None
         if stage1 is None:
             raise UserInputError(f"--surface-level: {src} has no Stage 1 (not a RadarDiffusion checkpoint)")
         stage1["surface_level"] = float(surface_level)
+    if mesh_resolution is not None:
+        if mesh_resolution < 2:
+            raise UserInputError(f"--mesh-resolution: expected an integer >= 2, got {mesh_resolution}")
+        checkpoint["hyper_parameters"]["mesh_resolution"] = int(mesh_resolution)
     data = _serialise(checkpoint)
     if max_mb is not None and size_mb(len(data)) > max_mb:
         raise UserInputError(f"{dst_label}: the exported model is {size_mb(len(data)):.1f} MB, over the "

@@ -64,6 +64,21 @@ def test_surface_level_override_moves_the_meshed_level(tiny, single_thread):  # 
     torch.testing.assert_close(shifted.inner.sdf_function(h)(points), plain.inner.sdf_function(h)(points) - 0.01)
 
 
+def test_mesh_resolution_override_meshes_on_that_grid(tiny, single_thread):  # noqa: F811
+    """``mesh_resolution`` is the grid of the reconstruction: the mesh ``mean_mesh`` gives at that resolution."""
+    wrapped = CheckpointModel(ckpt=str(tiny.exported), mesh_resolution=24)
+    assert wrapped.inner.hparams.mesh_resolution == 24
+    h = torch.randn(1, 1, wrapped.inner.n_levels, wrapped.inner.latent_dim, generator=torch.Generator().manual_seed(1))
+    wrapped.inner.sample_latents = lambda batch, **kwargs: h  # the same latent for both paths
+    got = wrapped.inner.reconstruct({"radar": None})[0].mesh
+    want, _ = wrapped.inner.mean_mesh(h[0], 24)
+    other, _ = wrapped.inner.mean_mesh(h[0], 12)
+    np.testing.assert_array_equal(got.vertices, want.vertices)
+    assert len(want.vertices) != len(other.vertices)
+    with pytest.raises(UserInputError, match="mesh_resolution: expected an integer >= 2, got 1"):
+        CheckpointModel(ckpt=str(tiny.exported), mesh_resolution=1)
+
+
 def test_fit_is_refused(tiny):  # noqa: F811
     wrapped = CheckpointModel(ckpt=str(tiny.exported))
     with pytest.raises(UserInputError, match="radar2shape test"):

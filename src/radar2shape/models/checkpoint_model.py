@@ -55,9 +55,12 @@ class CheckpointModel(ReconstructionModel):
         num_samples: K sampled shapes averaged per reconstruction (None: the checkpoint's own).
         surface_level: the decoded SDF level meshed as the surface (None: the checkpoint's own;
             latent models only): how a level is tried on the validation split before it is exported.
+        mesh_resolution: marching-cubes grid of the reconstructions and the Stage-1 ceiling (None:
+            the checkpoint's own; latent models only).
     """
 
-    def __init__(self, ckpt: str = DEFAULT, num_samples: int | None = None, surface_level: float | None = None) -> None:
+    def __init__(self, ckpt: str = DEFAULT, num_samples: int | None = None, surface_level: float | None = None,
+                 mesh_resolution: int | None = None) -> None:
         super().__init__()
         self.save_hyperparameters()
         from radar2shape.pretrained import DEFAULT_NAME, SHIPPED_MODELS, load_model, shipped_checkpoint
@@ -71,12 +74,16 @@ class CheckpointModel(ReconstructionModel):
         inner = contextvars.Context().run(load_model, self.ckpt_path, "model.init_args.ckpt")
         if num_samples is not None:
             inner.hparams.num_samples = int(num_samples)
-        if surface_level is not None:
-            stage1 = getattr(inner, "stage1", None)
-            if stage1 is None:
-                raise UserInputError(f"model.init_args.surface_level: {self.ckpt_path} is a {type(inner).__name__}, "
+        for option, value in (("surface_level", surface_level), ("mesh_resolution", mesh_resolution)):
+            if value is not None and getattr(inner, "stage1", None) is None:
+                raise UserInputError(f"model.init_args.{option}: {self.ckpt_path} is a {type(inner).__name__}, "
                                      "which meshes no latent SDF; only Radar2Shape (RadarDiffusion) checkpoints take it")
-            stage1.hparams.surface_level = float(surface_level)
+        if mesh_resolution is not None and mesh_resolution < 2:
+            raise UserInputError(f"model.init_args.mesh_resolution: expected an integer >= 2, got {mesh_resolution}")
+        if surface_level is not None:
+            inner.stage1.hparams.surface_level = float(surface_level)
+        if mesh_resolution is not None:
+            inner.hparams.mesh_resolution = int(mesh_resolution)
         self.inner = inner.requires_grad_(False)
         self._data_spec: RadarSpec | None = None
 
