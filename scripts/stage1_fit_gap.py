@@ -64,8 +64,8 @@ def score_split(model: SDFVAE, loader: DataLoader, resolutions: list[int]) -> di
     return {r: np.asarray(rows, dtype=np.float64) for r, rows in scores.items()}
 
 
-def report(run: Path, results: dict[str, dict[int, np.ndarray]]) -> str:
-    lines = [f"# Stage-1 fit gap: `{run}`", "",
+def report(ckpt: Path, results: dict[str, dict[int, np.ndarray]]) -> str:
+    lines = [f"# Stage-1 fit gap: `{ckpt}`", "",
              "Posterior means decoded and scored with the run's test protocol (scripts/stage1_fit_gap.py); "
              "mean ± std over shapes.", "",
              "| split | shapes | marching-cubes grid | IoU ↑ | CD x10^3 ↓ | F@1% ↑ |", "|---|---|---|---|---|---|"]
@@ -79,11 +79,13 @@ def report(run: Path, results: dict[str, dict[int, np.ndarray]]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", required=True, type=Path, help="a Stage-1 run folder of a sweep (fit/, and test/ when it was tested)")
+    parser.add_argument("--ckpt", default="last.ckpt",
+                        help="checkpoint file in the run's fit/version_0/checkpoints/ (default last.ckpt; e.g. best-val-iou.ckpt)")
     parser.add_argument("--train-shapes", type=int, default=100)
     parser.add_argument("--resolutions", type=int, nargs="+", default=[64])
     parser.add_argument("--out", required=True, type=Path)
     args = parser.parse_args()
-    ckpt = args.run / "fit/version_0/checkpoints/last.ckpt"
+    ckpt = args.run / "fit/version_0/checkpoints" / args.ckpt
     config = args.run / "test/version_0/config.yaml"
     if not config.is_file():  # a grid may skip Stage 1's own test; the fit config holds the same DataModule
         config = args.run / "fit/version_0/config.yaml"
@@ -99,7 +101,7 @@ def main() -> None:
         raise SystemExit(f"error: {err}") from None
     results = {split: score_split(model, loader, args.resolutions)
                for split, loader in loaders(datamodule, args.train_shapes).items()}
-    write_text_atomic(args.out, report(args.run, results))
+    write_text_atomic(args.out, report(ckpt, results))
     print(f"wrote {args.out}")
 
 

@@ -36,6 +36,10 @@ def test_missing_run_is_one_error_line_and_no_output(tmp_path, monkeypatch):
         stage1_fit_gap.main()
     assert str(exc.value).startswith("error: ") and "last.ckpt: not found" in str(exc.value)
     assert "\n" not in str(exc.value) and not out.exists()
+    monkeypatch.setattr(sys, "argv", ["stage1_fit_gap.py", "--run", str(tmp_path), "--ckpt", "best-val-iou.ckpt",
+                                      "--out", str(out)])
+    with pytest.raises(SystemExit, match="checkpoints/best-val-iou.ckpt: not found"):
+        stage1_fit_gap.main()
 
 
 paired_spec = importlib.util.spec_from_file_location("paired_scores", REPO / "scripts" / "paired_scores.py")
