@@ -306,7 +306,9 @@ def real_model_card(root: Path, checkpoint: Path) -> str:
         f"- Surface detail: its F-score at 1 % ({full['fscore_1pct_mean']:.3f}: the share of surface points within "
         f"1 % of the cube of the true surface) is below the lookup's ({lookup_f:.3f}) although its IoU and Chamfer "
         "are better: it gets the volume closer and the fine surface less often. Its Stage 1 reaches IoU "
-        f"{full['ceiling_iou_mean']:.3f} on these objects, a bound on this model.",
+        f"{full['ceiling_iou_mean']:.3f} on these objects, a bound on this model; meshing its SDF on a finer grid "
+        "or at another level does not raise it (docs/radar_diffusion.md, \"Decoding settings\"): the decoder "
+        "smooths thin parts away.",
         "- Procedural shapes: it never saw the parts family; on the "
         f"{len(on_parts)} parts_medium test shapes it scores IoU {pooled(on_parts, ('iou',))['iou_mean']:.3f} "
         f"([report]({link(REAL_ON_PARTS / 'real-model-on-parts.md')})), the default `--model parts` "
