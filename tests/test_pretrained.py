@@ -245,6 +245,8 @@ def test_export_refuses_bad_options(tiny, tmp_path):
         export_checkpoint(tiny.source, tmp_path / "a.pt")
     with pytest.raises(UserInputError, match="is the source checkpoint"):
         export_checkpoint(tiny.source, tiny.source)
+    with pytest.raises(UserInputError, match=r"^--mesh-resolution: expected an integer >= 2, got 1$"):
+        export_checkpoint(tiny.source, tmp_path / "a.ckpt", mesh_resolution=1)
     assert list(tmp_path.iterdir()) == []
 
 

@@ -135,7 +135,8 @@ def _serialise(checkpoint: dict) -> bytes:
 
 
 def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None, max_mb: float | None = None,
-                      surface_level: float | None = None, mesh_resolution: int | None = None, *, src_label: str = "--ckpt", dst_label: str = "--out") -> float:
+                      surface_level: float | None = None, mesh_resolution: int | None = None,
+                      *, src_label: str = "--ckpt", dst_label: str = "--out") -> float:
     """Write the inference-only copy of RadarDiffusion checkpoint ``src`` to ``dst``; returns its size in MB.
 
     Kept: :data:`EXPORT_KEYS` (weights, hyperparameters, radar spec, Lightning version); dropped:
@@ -144,14 +145,15 @@ def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None
     ``max_mb`` refuses a result larger than that, before anything is written. ``surface_level``
     (None: the source's) sets the level its Stage 1 meshes (``SDFVAE.surface_level``), chosen on the
     validation split; ``mesh_resolution`` (None: the source's) its marching-cubes grid. The file is
-    written atomically; a bad source, destination, dtype or size is
-    one ``UserInputError`` line.
+    written atomically; a bad source, destination, option or size is one ``UserInputError`` line.
     """
     src, dst = Path(src), Path(dst)
     if dtype is not None and dtype not in DTYPES:
         raise UserInputError(f"--dtype: expected one of {', '.join(DTYPES)}, got {dtype!r}")
     if max_mb is not None and not max_mb > 0:
         raise UserInputError(f"--max-mb: expected a positive number of MB, got {max_mb}")
+    if mesh_resolution is not None and mesh_resolution < 2:
+        raise UserInputError(f"--mesh-resolution: expected an integer >= 2, got {mesh_resolution}")
     check_output_path(dst, dst_label, (".ckpt",))
     if dst.resolve() == src.resolve():
         raise UserInputError(f"{dst_label}: {dst} is the source checkpoint ({src_label}); expected a separate file")
@@ -162,8 +164,6 @@ def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None
             raise UserInputError(f"--surface-level: {src} has no Stage 1 (not a RadarDiffusion checkpoint)")
         stage1["surface_level"] = float(surface_level)
     if mesh_resolution is not None:
-        if mesh_resolution < 2:
-            raise UserInputError(f"--mesh-resolution: expected an integer >= 2, got {mesh_resolution}")
         checkpoint["hyper_parameters"]["mesh_resolution"] = int(mesh_resolution)
     data = _serialise(checkpoint)
     if max_mb is not None and size_mb(len(data)) > max_mb:

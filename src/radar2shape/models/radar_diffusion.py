@@ -367,7 +367,10 @@ class RadarDiffusion(ReconstructionModel):
         return self.standardiser.inverse(x).reshape(-1, k, self.n_levels, self.latent_dim)
 
     def sdf_function(self, h: torch.Tensor):
-        """``points [N, 3] -> SDF [K, N]`` (relative to Stage 1's surface level) for latents ``h [K, L, Z]``, planes decoded once."""
+        """``points [N, 3] -> SDF [K, N]`` for latents ``h [K, L, Z]``, planes decoded once.
+
+        The SDF is Stage 1's :meth:`~SDFVAE.surface_sdf`: its zero level is the meshed surface.
+        """
         decoder = self.stage1.decoder
         planes = decoder.decode_planes(h)
 
