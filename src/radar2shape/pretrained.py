@@ -158,11 +158,8 @@ def export_checkpoint(src: str | Path, dst: str | Path, dtype: str | None = None
     if dst.resolve() == src.resolve():
         raise UserInputError(f"{dst_label}: {dst} is the source checkpoint ({src_label}); expected a separate file")
     checkpoint = minimal_checkpoint(_read_source(src, src_label), dtype)
-    if surface_level is not None:
-        stage1 = checkpoint.get("hyper_parameters", {}).get("stage1_hparams")
-        if stage1 is None:
-            raise UserInputError(f"--surface-level: {src} has no Stage 1 (not a RadarDiffusion checkpoint)")
-        stage1["surface_level"] = float(surface_level)
+    if surface_level is not None:  # a RadarDiffusion (_read_source checks) always holds its Stage 1's hyperparameters
+        checkpoint["hyper_parameters"]["stage1_hparams"]["surface_level"] = float(surface_level)
     if mesh_resolution is not None:
         checkpoint["hyper_parameters"]["mesh_resolution"] = int(mesh_resolution)
     data = _serialise(checkpoint)

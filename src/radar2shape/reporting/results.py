@@ -106,9 +106,14 @@ def table1_real(root: Path) -> str:
         "Diagnostics:", f"Per class: [per_class.md]({link(TABLE1_REAL / 'per_class.md')})." if per_class else "")
 
 
+def _reports_present(root: Path, folder: Path, extra: str | None = None) -> bool:
+    """Whether ``folder`` holds its grid's table (``<folder name>.csv``) and ``extra`` (e.g. paired.md)."""
+    return all((root / folder / name).is_file() for name in (f"{folder.name}.csv", extra) if name)
+
+
 def table1_real_long(root: Path) -> str:
     """The real-target Stage 2 trained as long as the shipped parts model, when its report exists."""
-    if not (root / TABLE1_REAL_LONG / "table1-real-long.csv").is_file():
+    if not _reports_present(root, TABLE1_REAL_LONG):
         return ""
     return table1_section(
         root, TABLE1_REAL_LONG, "Real targets, Stage 2 trained longer",
@@ -137,7 +142,7 @@ def _fit_gap_test_iou(root: Path, path: Path) -> str:
 
 def table1_real_s1long(root: Path) -> str:
     """The real-target rows on a Stage 1 trained 200 epochs, once its report and paired table exist."""
-    if not all((root / TABLE1_REAL_S1LONG / name).is_file() for name in ("table1-real-s1long.csv", "paired.md")):
+    if not _reports_present(root, TABLE1_REAL_S1LONG, "paired.md"):
         return ""
     return table1_section(
         root, TABLE1_REAL_S1LONG, "Real targets, Stage 1 trained longer",
@@ -157,8 +162,8 @@ TABLE1_REAL_SEEDS = Path("reports/table1-real-seeds")
 
 
 def table1_real_seeds(root: Path) -> str:
-    """Another seed of the shipped real model's Stage 2, once its report and paired table exist."""
-    if not all((root / TABLE1_REAL_SEEDS / name).is_file() for name in ("table1-real-seeds.csv", "paired.md")):
+    """Other seeds of the shipped real model's Stage 2, once their report and paired table exist."""
+    if not _reports_present(root, TABLE1_REAL_SEEDS, "paired.md"):
         return ""
     return table1_section(
         root, TABLE1_REAL_SEEDS, "Real targets, other Stage-2 seeds",
