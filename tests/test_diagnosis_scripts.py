@@ -103,3 +103,13 @@ def test_confidence_from_scores_is_spearman_over_defined_shapes(tmp_path):
     with pytest.raises(SystemExit) as exc:
         confidence_check.main(["--scores", str(plain), "--out", str(tmp_path / "x.md")])
     assert str(exc.value).startswith(f"error: {plain}: no radar_consistency column") and not (tmp_path / "x.md").exists()
+
+
+def test_real_paired_script_names_a_grid_without_scores():
+    import subprocess
+
+    result = subprocess.run(["bash", str(REPO / "scripts" / "table1_real_paired.sh"), "no-such-grid"],
+                            capture_output=True, text=True)
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr.strip().splitlines() == [
+        "error: reports/no-such-grid/scores does not exist: run 'radar2shape sweep no-such-grid' first"]

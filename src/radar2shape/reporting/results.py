@@ -131,6 +131,7 @@ STAGE1_CHECKS = (  # (what changed, its fit-gap report), each against the 60-epo
     ("weight averaging at 0.998", Path("reports/table1-real-stage1-ema/fit_gap.md")),
     ("weight averaging at 0.99", Path("reports/table1-real-stage1-ema99/fit_gap.md")),
     ("the same command rerun, its best validation check being its last", Path("reports/table1-real-stage1-bestval/fit_gap_last.md")),
+    ("latent, plane, plane-VAE and MLP widths doubled", Path("reports/table1-real-wide/fit_gap.md")),
 )
 
 
@@ -154,23 +155,39 @@ def table1_real_s1long(root: Path) -> str:
         f"(the 60-epoch Stage 1: [fit_gap_stage1.md]({link(TABLE1_REAL_LONG / 'fit_gap_stage1.md')})). "
         "Other Stage-1 changes, their test ceiling scored the same way (the 60-epoch Stage 1: "
         f"{_fit_gap_test_iou(root, TABLE1_REAL_LONG / 'fit_gap_stage1.md')}): " + "; ".join(
-            f"{what}: {_fit_gap_test_iou(root, path)} ([{path.name}]({link(path)}))" for what, path in STAGE1_CHECKS) + ".",
+            f"{what}: {_fit_gap_test_iou(root, path)} ([{path.name}]({link(path)}))"
+            for what, path in STAGE1_CHECKS if (root / path).is_file()) + ".",
         "Diagnostics:")
 
 
 TABLE1_REAL_SEEDS = Path("reports/table1-real-seeds")
+TABLE1_REAL_WIDE = Path("reports/table1-real-wide")
+
+
+def _paired_real_section(root: Path, folder: Path, title: str, intro: str) -> str:
+    """A real-target grid paired against the shipped model (scripts/table1_real_paired.sh), once both exist."""
+    if not _reports_present(root, folder, "paired.md"):
+        return ""
+    return table1_section(root, folder, title, intro, "Diagnostics:")
 
 
 def table1_real_seeds(root: Path) -> str:
-    """Other seeds of the shipped real model's Stage 2, once their report and paired table exist."""
-    if not _reports_present(root, TABLE1_REAL_SEEDS, "paired.md"):
-        return ""
-    return table1_section(
+    """Other seeds of the shipped real model's Stage 2."""
+    return _paired_real_section(
         root, TABLE1_REAL_SEEDS, "Real targets, other Stage-2 seeds",
         "The shipped `real` model's Stage-2 recipe with seeds other than its 0 (the grid's `-seedN` runs), "
         "on the very Stage 1 the shipped file holds, tested the same way. Paired with seed 0 per seed: "
-        f"[paired.md]({link(TABLE1_REAL_SEEDS / 'paired.md')}).",
-        "Diagnostics:")
+        f"[paired.md]({link(TABLE1_REAL_SEEDS / 'paired.md')}).")
+
+
+def table1_real_wide(root: Path) -> str:
+    """The shipped real model's Stage-2 recipe on a wider Stage 1."""
+    return _paired_real_section(
+        root, TABLE1_REAL_WIDE, "Real targets, a wider Stage 1",
+        "The shipped `real` model's recipe (seed 0) on a Stage 1 whose latent, planes, plane VAE and SDF MLP are "
+        "twice as wide (latent 3 x 128 numbers instead of 3 x 64). Its Stage 1 on its own training objects and "
+        f"the test objects: [fit_gap.md]({link(TABLE1_REAL_WIDE / 'fit_gap.md')}); paired with the shipped model "
+        f"and the lookup: [paired.md]({link(TABLE1_REAL_WIDE / 'paired.md')}).")
 
 
 def table1_tiny(root: Path) -> str:
@@ -213,7 +230,7 @@ def results_page(root: Path) -> str:
     parts = ["# Results", "", GENERATED + " Every table links the report it comes from; each report "
              "says which grid produced it (`make sweep GRID=...` reruns it).", "",
              table1_medium(root), table1_medium_stage2(root), table1_real(root), table1_real_long(root),
-             table1_real_s1long(root), table1_real_seeds(root), table1_tiny(root), table2_medium(root), monocone(root)]
+             table1_real_s1long(root), table1_real_seeds(root), table1_real_wide(root), table1_tiny(root), table2_medium(root), monocone(root)]
     return "\n".join(p for p in parts if p).rstrip() + "\n"
 
 
