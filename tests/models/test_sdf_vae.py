@@ -13,7 +13,7 @@ from torch.utils.data import DataLoader
 from radar2shape.errors import UserInputError
 from radar2shape.metrics import score_reconstruction
 from radar2shape.models.latent_writer import LatentWriter
-from radar2shape.models.sdf_vae import SDFVAE, truncated_l1
+from radar2shape.models.sdf_vae import SDFVAE, sign_loss, truncated_l1
 from tests.models.shapes import SHAPES, AnalyticShapeDataset
 
 TINY = dict(
@@ -99,6 +99,29 @@ def test_truncated_l1_keeps_a_gradient_on_the_wrong_side():
     loss.backward()
     assert pred.grad[0] == 0 and pred.grad[1] > 0 and pred.grad[2] < 0
     assert truncated_l1(pred, target, 0.0) == (pred - target).abs().mean()
+
+
+def test_sign_loss_is_the_cross_entropy_of_the_sign_at_its_temperature():
+    import math
+
+    pred = torch.tensor([0.005, -0.005, 0.0])
+    target = torch.tensor([0.1, 0.1, -0.2])  # outside, outside, inside
+    # logits -pred / T = -2, 2, 0: the right sign (log(1 + e^-2)), the wrong sign (log(1 + e^2)), on the surface (log 2)
+    expected = (math.log1p(math.exp(-2)) + math.log1p(math.exp(2)) + math.log(2)) / 3
+    torch.testing.assert_close(sign_loss(pred, target, 0.0025), torch.tensor(expected))
+
+
+def test_sign_weight_adds_the_weighted_sign_term_to_the_loss():
+    torch.manual_seed(0)
+    plain = SDFVAE(**TINY)
+    signed = SDFVAE(**TINY, sign_weight=0.5, sign_temperature=0.01)
+    signed.load_state_dict(plain.state_dict())
+    batch = random_batch()
+    a, b = plain.eval_losses(batch, 0), signed.eval_losses(batch, 0)
+    assert "sign" not in a and float(b["sign"]) > 0
+    torch.testing.assert_close(b["loss"], a["loss"] + 0.5 * b["sign"])
+    with pytest.raises(UserInputError, match="sign_temperature > 0"):
+        SDFVAE(**TINY, sign_weight=0.1, sign_temperature=0.0)
 
 
 @pytest.mark.parametrize(
