@@ -181,16 +181,6 @@ def table1_real_seeds(root: Path) -> str:
         f"[paired.md]({link(TABLE1_REAL_SEEDS / 'paired.md')}).")
 
 
-def table1_real_sign(root: Path) -> str:
-    """The shipped real model's Stage-2 recipe on a Stage 1 trained with the sign loss."""
-    return _paired_real_section(
-        root, TABLE1_REAL_SIGN, "Real targets, a Stage 1 trained on inside and outside",
-        "The shipped `real` model's recipe (seed 0) on a Stage 1 trained with an inside/outside cross-entropy "
-        "beside its L1 loss (`sign_weight` 0.02, temperature 0.0025; docs/sdf_vae.md). Its Stage 1 on its own "
-        f"training objects and the test objects: [fit_gap.md]({link(TABLE1_REAL_SIGN / 'fit_gap.md')}); paired "
-        f"with the shipped model and the lookup: [paired.md]({link(TABLE1_REAL_SIGN / 'paired.md')}).")
-
-
 def table1_tiny(root: Path) -> str:
     rows = read_table(root / "reports/table1/table1.csv")
     groups = {"full": "full", "partial": "partial", "full-sbr": "full, PO-SBR", "partial-sbr": "partial, PO-SBR"}
@@ -231,7 +221,7 @@ def results_page(root: Path) -> str:
     parts = ["# Results", "", GENERATED + " Every table links the report it comes from; each report "
              "says which grid produced it (`make sweep GRID=...` reruns it).", "",
              table1_medium(root), table1_medium_stage2(root), table1_real(root), table1_real_long(root),
-             table1_real_s1long(root), table1_real_seeds(root), table1_real_sign(root), table1_tiny(root), table2_medium(root), monocone(root)]
+             table1_real_s1long(root), table1_real_seeds(root), table1_tiny(root), table2_medium(root), monocone(root)]
     return "\n".join(p for p in parts if p).rstrip() + "\n"
 
 

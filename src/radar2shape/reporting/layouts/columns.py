@@ -44,7 +44,6 @@ MODEL_TITLES = {
     "radar2shape_circ_steps12k_k8": "Radar2Shape, circular roll padding, Stage 2 for 11,960 steps, mean of 8 samples",
     "radar2shape_s1long": "Radar2Shape, Stage 1 for 200 epochs, Stage 2 for 4,160 steps",
     "radar2shape_s1long_steps12k": "Radar2Shape, Stage 1 for 200 epochs, Stage 2 for 11,960 steps",
-    "radar2shape_sign_steps12k": "Radar2Shape, Stage 1 with the sign loss, Stage 2 for 11,960 steps",
     "diffusion_sdf": "Diffusion-SDF",
     "tmnet": "TMNet",
     "list": "LIST",
