@@ -126,14 +126,13 @@ def table1_real_long(root: Path) -> str:
 
 
 TABLE1_REAL_S1LONG = Path("reports/table1-real-s1long")
-TABLE1_REAL_SIGN = Path("reports/table1-real-stage1-sign")
 STAGE1_CHECKS = (  # (what changed, its fit-gap report), each against the 60-epoch Stage 1 of table1-real-long
     ("a fourth, 64 px level", Path("reports/table1-real-stage1-r64/fit_gap.md")),
     ("weight averaging at 0.998", Path("reports/table1-real-stage1-ema/fit_gap.md")),
     ("weight averaging at 0.99", Path("reports/table1-real-stage1-ema99/fit_gap.md")),
     ("the same command rerun, its best validation check being its last", Path("reports/table1-real-stage1-bestval/fit_gap_last.md")),
     ("latent, plane, plane-VAE and MLP widths doubled", Path("reports/table1-real-wide/fit_gap.md")),
-    ("an inside/outside cross-entropy beside the L1 loss", TABLE1_REAL_SIGN / "fit_gap.md"),
+    ("an inside/outside cross-entropy beside the L1 loss", Path("reports/table1-real-stage1-sign/fit_gap.md")),
 )
 
 
@@ -165,20 +164,16 @@ def table1_real_s1long(root: Path) -> str:
 TABLE1_REAL_SEEDS = Path("reports/table1-real-seeds")
 
 
-def _paired_real_section(root: Path, folder: Path, title: str, intro: str) -> str:
-    """A real-target grid paired against the shipped model (scripts/table1_real_paired.sh), once both exist."""
-    if not _reports_present(root, folder, "paired.md"):
-        return ""
-    return table1_section(root, folder, title, intro, "Diagnostics:")
-
-
 def table1_real_seeds(root: Path) -> str:
-    """Other seeds of the shipped real model's Stage 2."""
-    return _paired_real_section(
+    """Other seeds of the shipped real model's Stage 2, once their report and paired table exist."""
+    if not _reports_present(root, TABLE1_REAL_SEEDS, "paired.md"):
+        return ""
+    return table1_section(
         root, TABLE1_REAL_SEEDS, "Real targets, other Stage-2 seeds",
         "The shipped `real` model's Stage-2 recipe with seeds other than its 0 (the grid's `-seedN` runs), "
         "on the very Stage 1 the shipped file holds, tested the same way. Paired with seed 0 per seed: "
-        f"[paired.md]({link(TABLE1_REAL_SEEDS / 'paired.md')}).")
+        f"[paired.md]({link(TABLE1_REAL_SEEDS / 'paired.md')}).",
+        "Diagnostics:")
 
 
 def table1_tiny(root: Path) -> str:
