@@ -11,8 +11,8 @@ If the fitted latents score much higher, the decoder can express the shapes and 
 amortised guess of the latent) is what caps the ceiling; if not, the decoder is.
 
 ``--ckpt`` is a Stage-1 checkpoint or a Radar2Shape checkpoint holding one. Writes OUT (means per
-class, the latent's move relative to its norm) and OUT with ``.csv`` (one row per shape). Bad
-input is one ``error:`` line.
+class, the latent's move relative to its norm), OUT with ``.csv`` (one row per shape) and with
+``.png`` (slices of the objects that gain and lose most). Bad input is one ``error:`` line.
 """
 
 from __future__ import annotations
@@ -65,9 +65,9 @@ def score(model: SDFVAE, h: torch.Tensor, record: dict, resolution: int) -> dict
     return score_reconstruction(Reconstruction(mesh=mesh), record["eval_points"], record["occ_points"], record["occ_inside"])
 
 
-def measure(model: SDFVAE, root: Path, split: str, indices: list[int], ids: list[str], args) -> list[dict]:
-    """One row per record: scores and SDF loss of its encoded and its fitted latent."""
-    rows = []
+def measure(model: SDFVAE, root: Path, split: str, indices: list[int], ids: list[str], args) -> tuple[list[dict], dict]:
+    """One row per record (scores and SDF loss of its encoded and its fitted latent), and the latents by record id."""
+    rows, latents = [], {}
     for start in range(0, len(ids), args.batch):
         chunk = ids[start:start + args.batch]
         records = [read_record(record_path(root, split, i)) for i in chunk]
@@ -87,9 +87,56 @@ def measure(model: SDFVAE, root: Path, split: str, indices: list[int], ids: list
                          "iou_encoded": before["iou"], "iou_fitted": after["iou"],
                          "fscore_1pct_encoded": before["fscore_1pct"], "fscore_1pct_fitted": after["fscore_1pct"],
                          "latent_move": float((fitted[i] - mu[i]).norm() / mu[i].norm().clamp(min=1e-12))})
+            latents[record_id] = (mu[i], fitted[i])
         print(f"\r{len(rows)}/{len(ids)} shapes", end="", file=sys.stderr, flush=True)
     print(file=sys.stderr)
-    return rows
+    return rows, latents
+
+
+def draw(model: SDFVAE, root: Path, split: str, rows: list[dict], latents: dict, out: Path, per_side: int = 3) -> None:
+    """Slices through the objects that gain most and lose most: truth, encoded, fitted (inside in colour).
+
+    Each object is cut by the horizontal plane and the vertical (xz) plane through the median of its
+    surface samples, and each cut is labelled inside/outside by the record's mesh and by both decoded SDFs."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import trimesh
+
+    from radar2shape.geometry.query import contains
+
+    ranked = sorted((r for r in rows if not math.isnan(r["iou_fitted"] - r["iou_encoded"])),
+                    key=lambda r: r["iou_fitted"] - r["iou_encoded"])
+    best = ranked[::-1][:per_side]
+    picked = best + [r for r in ranked[:per_side][::-1] if r not in best]
+    bound, n = float(model.hparams.bound), 160
+    axis = np.linspace(-bound, bound, n, dtype=np.float32)
+    u, v = np.meshgrid(axis, axis, indexing="xy")
+    fig, axes = plt.subplots(len(picked), 6, figsize=(13, 2.3 * len(picked)), squeeze=False)
+    for row_axes, row in zip(axes, picked):
+        record = read_record(record_path(root, split, row["record_id"]), ["vertices", "faces", "surface_points"])
+        mesh = trimesh.Trimesh(record["vertices"], record["faces"], process=False)
+        centre = np.median(record["surface_points"], axis=0)
+        cuts = {"xy": np.stack([u.ravel(), v.ravel(), np.full(u.size, centre[2])], 1),
+                "xz": np.stack([u.ravel(), np.full(u.size, centre[1]), v.ravel()], 1)}
+        panels = []
+        for plane, points in cuts.items():
+            query = torch.from_numpy(points.astype(np.float32))[None]
+            with torch.no_grad():
+                encoded, fitted = (model.surface_sdf(model.decoder.decode_planes(h[None]), query)[0].numpy() < 0
+                                   for h in latents[row["record_id"]])
+            panels += [(contains(mesh, points), f"truth, {plane}"), (encoded, f"encoded {row['iou_encoded']:.2f}"),
+                       (fitted, f"fitted {row['iou_fitted']:.2f}")]
+        for ax, (inside, title) in zip(row_axes, panels):
+            ax.imshow(inside.reshape(n, n), origin="lower", extent=(-bound, bound, -bound, bound), cmap="Blues")
+            ax.set_title(title, fontsize=8)
+            ax.set_xticks([])
+            ax.set_yticks([])
+        row_axes[0].set_ylabel(row["record_id"].split("__")[1][:18], fontsize=8)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=80)
+    plt.close(fig)
 
 
 def mean(values) -> float:
@@ -142,7 +189,7 @@ def main() -> None:
         indices = list(range(len(ids)))
         if args.shapes:
             indices = sorted(int(i) for i in np.random.default_rng(0).permutation(len(ids))[:args.shapes])
-        rows = measure(model, args.data, args.split, indices, [ids[i] for i in indices], args)
+        rows, latents = measure(model, args.data, args.split, indices, [ids[i] for i in indices], args)
     except UserInputError as err:
         raise SystemExit(f"error: {err}") from None
     table = io.StringIO()
@@ -150,8 +197,10 @@ def main() -> None:
     writer.writeheader()
     writer.writerows(rows)
     write_text_atomic(args.out.with_suffix(".csv"), table.getvalue())
-    write_text_atomic(args.out, markdown(args, rows, manifest["classes"]))
-    print(f"wrote {args.out} and {args.out.with_suffix('.csv')}")
+    figure = args.out.with_suffix(".png")
+    draw(model, args.data, args.split, rows, latents, figure)
+    write_text_atomic(args.out, markdown(args, rows, manifest["classes"]) + f"\n![slices]({figure.name})\n")
+    print(f"wrote {args.out}, {args.out.with_suffix('.csv')} and {figure}")
 
 
 if __name__ == "__main__":

@@ -113,6 +113,26 @@ def _yaw_line(root: Path, report: Path = YAW_CHECK) -> str:
             f"with the aircraft turned {yaw} deg about z ([{report.name}]({link(report)})).")
 
 
+LATENT_REFINEMENT = Path("reports/real/latent_refinement.csv")  # scripts/latent_refinement.py on the shipped real model
+
+
+def _latent_refinement_line(root: Path, report: Path = LATENT_REFINEMENT) -> str:
+    """What the real model's Stage 1 decodes from latents fitted to each test object (its encoder's share of the loss)."""
+    path = root / report
+    if not path.is_file():
+        return " The decoder smooths thin parts away."
+    rows = read_scores(path)
+    by_class: dict[str, list[float]] = {}
+    for row in rows:
+        by_class.setdefault(row["label"], []).append(float(row["iou_fitted"]) - float(row["iou_encoded"]))
+    lower = sum(1 for gains in by_class.values() if sum(gains) < 0)
+    return (f" Part of the loss is its encoder's: latents fitted to each test object with the decoder frozen score "
+            f"IoU {pooled(rows, ('iou_fitted',))['iou_fitted_mean']:.3f} against the encoder's "
+            f"{pooled(rows, ('iou_encoded',))['iou_encoded_mean']:.3f} ([{report.with_suffix('.md').name}]"
+            f"({link(report.with_suffix('.md'))})), though lower on {lower} of {len(by_class)} classes, thin ones, "
+            "where a lower SDF error does not mean a higher IoU.")
+
+
 def _read_shipped(checkpoint: Path):
     """A shipped file's checkpoint dict, radar spec and parameter count."""
     from radar2shape.checkpoints import load_checkpoint
@@ -307,8 +327,8 @@ def real_model_card(root: Path, checkpoint: Path) -> str:
         f"1 % of the cube of the true surface) is below the lookup's ({lookup_f:.3f}) although its IoU and Chamfer "
         "are better: it gets the volume closer and the fine surface less often. Its Stage 1 reaches IoU "
         f"{full['ceiling_iou_mean']:.3f} on these objects, a bound on this model; meshing its SDF on a finer grid "
-        "or at another level does not raise it (docs/radar_diffusion.md, \"Decoding settings\"): the decoder "
-        "smooths thin parts away.",
+        "or at another level does not raise it (docs/radar_diffusion.md, \"Decoding settings\")."
+        + _latent_refinement_line(root),
         "- Procedural shapes: it never saw the parts family; on the "
         f"{len(on_parts)} parts_medium test shapes it scores IoU {pooled(on_parts, ('iou',))['iou_mean']:.3f} "
         f"([report]({link(REAL_ON_PARTS / 'real-model-on-parts.md')})), the default `--model parts` "

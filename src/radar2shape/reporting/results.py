@@ -133,6 +133,8 @@ STAGE1_CHECKS = (  # (what changed, its fit-gap report), each against the 60-epo
     ("the same command rerun, its best validation check being its last", Path("reports/table1-real-stage1-bestval/fit_gap_last.md")),
     ("latent, plane, plane-VAE and MLP widths doubled", Path("reports/table1-real-wide/fit_gap.md")),
     ("an inside/outside cross-entropy beside the L1 loss", Path("reports/table1-real-stage1-sign/fit_gap.md")),
+    ("a KL weight of 1e-7 instead of 1e-5", Path("reports/table1-real-stage1-kl/fit_gap_kl1e7.md")),
+    ("nothing but the training seed (1 instead of 0)", Path("reports/table1-real-stage1-seed/fit_gap_seed1.md")),
 )
 
 
