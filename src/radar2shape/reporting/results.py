@@ -135,6 +135,7 @@ STAGE1_CHECKS = (  # (what changed, its fit-gap report), each against the 60-epo
     ("an inside/outside cross-entropy beside the L1 loss", Path("reports/table1-real-stage1-sign/fit_gap.md")),
     ("a KL weight of 1e-7 instead of 1e-5", Path("reports/table1-real-stage1-kl/fit_gap_kl1e7.md")),
     ("nothing but the training seed (1 instead of 0)", Path("reports/table1-real-stage1-seed/fit_gap_seed1.md")),
+    ("the encoder's point-network and U-Net widths doubled", Path("reports/table1-real-stage1-encoder/fit_gap.md")),
 )
 
 
