@@ -51,17 +51,28 @@ def loaders(datamodule, train_shapes: int, seed: int = 0) -> dict[str, DataLoade
 
 
 @torch.no_grad()
-def score_split(model: SDFVAE, loader: DataLoader, resolutions: list[int]) -> dict[int, np.ndarray]:
-    """``{resolution: [shapes, len(METRICS)]}`` scores of the decoded posterior means."""
+def score_split(model: SDFVAE, loader: DataLoader, resolutions: list[int]) -> tuple[dict[int, np.ndarray], np.ndarray]:
+    """``{resolution: [shapes, len(METRICS)]}`` scores of the decoded posterior means, and ``[shapes, 2]``
+    record index and class label of each row."""
     scores = {r: [] for r in resolutions}
+    keys = []
     for batch in loader:
         mu, _ = model.encoder(batch["surface_points"])
+        keys += [[int(i), int(c)] for i, c in zip(batch["index"], batch["label"])]
         for r in resolutions:
             for i, mesh in enumerate(model.extract_mesh(mu, r)):
                 row = score_reconstruction(Reconstruction(mesh=mesh), batch["eval_points"][i].numpy(),
                                            batch["occ_points"][i].numpy(), batch["occ_inside"][i].numpy())
                 scores[r].append([row[m] for m in METRICS])
-    return {r: np.asarray(rows, dtype=np.float64) for r, rows in scores.items()}
+    return {r: np.asarray(rows, dtype=np.float64) for r, rows in scores.items()}, np.asarray(keys, dtype=np.int64)
+
+
+def per_shape_csv(scores: np.ndarray, keys: np.ndarray) -> str:
+    """One row per shape with the column names of a report's Stage-1 ceiling (``ceiling_<metric>``), so
+    ``scripts/paired_scores.py --metrics ceiling_iou ...`` pairs it with a report's per-shape scores."""
+    lines = ["index,label," + ",".join(f"ceiling_{m}" for m in METRICS)]
+    lines += [f"{i},{c}," + ",".join(repr(float(v)) for v in row) for (i, c), row in zip(keys, scores)]
+    return "\n".join(lines) + "\n"
 
 
 def report(ckpt: Path, results: dict[str, dict[int, np.ndarray]]) -> str:
@@ -84,6 +95,7 @@ def main() -> None:
     parser.add_argument("--train-shapes", type=int, default=100)
     parser.add_argument("--resolutions", type=int, nargs="+", default=[64])
     parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--scores", type=Path, help="also write the test split's per-shape scores (first grid) to this CSV")
     args = parser.parse_args()
     ckpt = args.run / "fit/version_0/checkpoints" / args.ckpt
     config = args.run / "test/version_0/config.yaml"
@@ -99,8 +111,12 @@ def main() -> None:
         datamodule = datamodule_of(config)
     except UserInputError as err:
         raise SystemExit(f"error: {err}") from None
-    results = {split: score_split(model, loader, args.resolutions)
-               for split, loader in loaders(datamodule, args.train_shapes).items()}
+    scored = {split: score_split(model, loader, args.resolutions)
+              for split, loader in loaders(datamodule, args.train_shapes).items()}
+    results = {split: by_resolution for split, (by_resolution, _) in scored.items()}
+    if args.scores:
+        by_resolution, keys = scored["test"]
+        write_text_atomic(args.scores, per_shape_csv(by_resolution[args.resolutions[0]], keys))
     write_text_atomic(args.out, report(ckpt, results))
     print(f"wrote {args.out}")
 

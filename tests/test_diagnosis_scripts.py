@@ -29,6 +29,20 @@ def test_report_rows_are_means_and_population_stds_per_split_and_grid():
     ]
 
 
+def test_per_shape_ceilings_carry_index_label_and_pair_with_a_reports_ceiling_columns(tmp_path):
+    scores = np.array([[0.5, 2.0, 0.25], [0.75, 4.0, 0.5]])  # iou, chamfer x1e3, fscore per shape
+    text = stage1_fit_gap.per_shape_csv(scores, np.array([[7, 2], [3, 0]]))
+    assert text.splitlines() == ["index,label,ceiling_iou,ceiling_chamfer_l2_x1e3,ceiling_fscore_1pct",
+                                 "7,2,0.5,2.0,0.25", "3,0,0.75,4.0,0.5"]
+    mine = tmp_path / "mine.csv"
+    mine.write_text(text)
+    theirs = tmp_path / "theirs.csv"
+    theirs.write_text("index,label,iou,ceiling_iou\n3,0,0.1,0.25\n7,2,0.1,0.5\n")
+    a, b = (paired_scores.read_scores(p, ("ceiling_iou",)) for p in (mine, theirs))
+    mean, _, n = paired_scores.paired(a, b, "ceiling_iou")
+    assert n == 2 and mean == pytest.approx(0.25)  # (0.75 - 0.25 + 0.5 - 0.5) / 2
+
+
 def test_missing_run_is_one_error_line_and_no_output(tmp_path, monkeypatch):
     out = tmp_path / "gap.md"
     monkeypatch.setattr(sys, "argv", ["stage1_fit_gap.py", "--run", str(tmp_path / "nope"), "--out", str(out)])
