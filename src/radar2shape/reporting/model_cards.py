@@ -120,7 +120,7 @@ def _latent_refinement_line(root: Path, report: Path = LATENT_REFINEMENT) -> str
     """What the real model's Stage 1 decodes from latents fitted to each test object (its encoder's share of the loss)."""
     path = root / report
     if not path.is_file():
-        return " The decoder smooths thin parts away."
+        return ""
     rows = read_scores(path)
     by_class: dict[str, list[float]] = {}
     for row in rows:
