@@ -136,6 +136,7 @@ STAGE1_CHECKS = (  # (what changed, its fit-gap report), each against the 60-epo
     ("a KL weight of 1e-7 instead of 1e-5", Path("reports/table1-real-stage1-kl/fit_gap_kl1e7.md")),
     ("nothing but the training seed (1 instead of 0)", Path("reports/table1-real-stage1-seed/fit_gap_seed1.md")),
     ("the encoder's point-network and U-Net widths doubled", Path("reports/table1-real-stage1-encoder/fit_gap.md")),
+    ("the same, seed 1", Path("reports/table1-real-stage1-encoder/fit_gap_seed1.md")),
 )
 
 
