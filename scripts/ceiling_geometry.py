@@ -105,18 +105,17 @@ def markdown(args, rows: list[dict], classes: list[str], columns: list[str]) -> 
              f"meshes. Exact SDF at R^3: the true shape meshed on the evaluator's grid, a bound on any decoder at that "
              f"grid. Thin share: share of the object's volume within {args.thin:g} of its surface. Means per class:", "",
              "| class (shapes) | " + " | ".join(titles[c] for c in shown) + " |", "|---" * (len(shown) + 1) + "|"]
-    groups: dict[str, list[dict]] = {}
-    for row in rows:
-        groups.setdefault(classes[row["label"]] if row["label"] < len(classes) else str(row["label"]), []).append(row)
-    for name, members in [*sorted(groups.items()), ("**all**", rows)]:
-        lines.append(f"| {name} ({len(members)}) | " + " | ".join(f"{mean([m[c] for m in members]):.3f}" for c in shown) + " |")
+    def table_rows(key) -> list[str]:
+        groups: dict[str, list[dict]] = {}
+        for row in rows:
+            groups.setdefault(key(row), []).append(row)
+        return [f"| {name} ({len(members)}) | " + " | ".join(f"{mean([m[c] for m in members]):.3f}" for c in shown) + " |"
+                for name, members in groups.items()]
+
+    lines += sorted(table_rows(lambda r: classes[r["label"]] if r["label"] < len(classes) else str(r["label"])))
+    lines.append(f"| **all** ({len(rows)}) | " + " | ".join(f"{mean([r[c] for r in rows]):.3f}" for c in shown) + " |")
     lines += ["", "By repair step:", "", "| repair (shapes) | " + " | ".join(titles[c] for c in shown) + " |",
-              "|---" * (len(shown) + 1) + "|"]
-    by_repair: dict[str, list[dict]] = {}
-    for row in rows:
-        by_repair.setdefault(row["repair"], []).append(row)
-    for name, members in sorted(by_repair.items()):
-        lines.append(f"| {name} ({len(members)}) | " + " | ".join(f"{mean([m[c] for m in members]):.3f}" for c in shown) + " |")
+              "|---" * (len(shown) + 1) + "|", *sorted(table_rows(lambda r: r["repair"]))]
     lines += ["", "Spearman rank correlation with the per-shape Stage-1 ceiling IoU:", "",
               "| quantity | Spearman ρ | shapes |", "|---|---|---|"]
     for c in shown[1:]:

@@ -59,6 +59,13 @@ def refine_latents(model: SDFVAE, h: torch.Tensor, points: torch.Tensor, values:
     return h.detach()
 
 
+@torch.no_grad()
+def per_shape_l1(model: SDFVAE, h: torch.Tensor, points: torch.Tensor, values: torch.Tensor) -> list[float]:
+    """The training loss of each shape's latent on all its SDF samples."""
+    return [truncated_l1(model.decode_sdf(h[i:i + 1], points[i:i + 1]), values[i:i + 1], model.hparams.truncation).item()
+            for i in range(len(h))]
+
+
 def score(model: SDFVAE, h: torch.Tensor, record: dict, resolution: int) -> dict[str, float]:
     with torch.no_grad():
         mesh = model.extract_mesh(h[None], resolution)[0]
@@ -77,9 +84,7 @@ def measure(model: SDFVAE, root: Path, split: str, indices: list[int], ids: list
         with torch.no_grad():
             mu, _ = model.encode(surface)
         fitted = refine_latents(model, mu, points, values, args.steps, args.lr, seed=start)
-        with torch.no_grad():
-            l1_before = [truncated_l1(model.decode_sdf(mu[i:i + 1], points[i:i + 1]), values[i:i + 1], model.hparams.truncation).item() for i in range(len(chunk))]
-            l1_after = [truncated_l1(model.decode_sdf(fitted[i:i + 1], points[i:i + 1]), values[i:i + 1], model.hparams.truncation).item() for i in range(len(chunk))]
+        l1_before, l1_after = (per_shape_l1(model, h, points, values) for h in (mu, fitted))
         for i, (record_id, record) in enumerate(zip(chunk, records)):
             before, after = score(model, mu[i], record, args.resolution), score(model, fitted[i], record, args.resolution)
             rows.append({"index": indices[start + i], "record_id": record_id, "label": int(record["label"]),
