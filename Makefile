@@ -14,7 +14,7 @@ DATA_DIR ?= data/parts
 WORKERS ?= 2
 
 .DEFAULT_GOAL := help
-.PHONY: help install test test-full demo data data-real fit test-model sweep report results monocone default-model real-model validation bench clean
+.PHONY: help install test test-full demo data data-real data-real-variants fit test-model sweep report results monocone default-model real-model validation bench clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*## "}; {printf "  %-12s %s\n", $$1, $$2}'
@@ -48,6 +48,12 @@ data-real: install ## Build the real-target dataset (FlightGear + Gazebo, conf/d
 	  for deb in $(REAL_SRC).partial/debs/*.deb; do dpkg-deb -x "$$deb" $(REAL_SRC).partial; done; \
 	  rm -rf $(REAL_SRC).partial/debs $(REAL_SRC); mv $(REAL_SRC).partial $(REAL_SRC); fi
 	$(VENV)/bin/radar2shape build-data --config conf/data/real.yaml --out data/real --workers $(WORKERS)
+
+data-real-variants: data-real ## data/real plus a stretched copy of every training object (conf/data/real_variants.yaml) into data/real-variants
+	@# The originals' records are a pure function of their task, which the variants leave unchanged
+	@# (tests/data/test_real_sources.py): link them in, so that the build only makes the variants.
+	@if [ ! -d data/real-variants/records ]; then mkdir -p data/real-variants && cp -al data/real/records data/real-variants/records; fi
+	$(VENV)/bin/radar2shape build-data --config conf/data/real_variants.yaml --out data/real-variants --workers $(WORKERS)
 
 fit: install ## Train: make fit CONFIG="conf/trainer/cpu.yaml conf/callbacks/shape_metrics.yaml conf/experiment/NAME.yaml"
 	$(VENV)/bin/radar2shape fit $(foreach c,$(CONFIG),--config $(c))

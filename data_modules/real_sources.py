@@ -16,6 +16,13 @@ for model folders and names, ``GAZEBO_CLASSES``); anything unlisted is ``other``
 object, never by file: every file of one object group (all 737 variants and their levels of
 detail; the same building under two folders; one Gazebo model) falls in one split, drawn from a
 stable hash of ``seed:group``. Identical files (same bytes) are kept once.
+
+Variants (``family_options.variants``, off by default): each training object is also built
+``per_object`` more times, stretched along x, y and z by factors drawn log-uniformly from
+``scale`` before repair and normalisation, so an airliner stays an airliner with another
+length, span and height. Every variant is re-sampled and re-simulated (an anisotropic stretch
+does not map an SDF or a radar response onto the stretched object's), and only training objects
+get them, so no stretched copy of a validation or test object exists.
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ from radar2shape.geometry.frames import UP_AXES, to_body_frame
 CLASSES = ["airliner", "business jet", "light aircraft", "fighter", "helicopter", "ship", "ground vehicle",
            "building", "household object", "street furniture", "other"]
 SOURCE_TYPES = ("flightgear_ai", "flightgear_models", "gazebo")
+VARIANT_MARK = "#variant"  # task source of a variant: "<source>#variant<k>"
 FG_DATA = "usr/share/games/flightgear"  # below the root of an unpacked flightgear-data-* package
 
 # AI/Aircraft/<folder> -> (object group, class). Groups join the variants of one type (lengths,
@@ -174,7 +182,7 @@ class RealTargetsFamily(Family):
 
     name = "real"
 
-    def __init__(self, sources: list, val_fraction: float = 0.1):
+    def __init__(self, sources: list, val_fraction: float = 0.1, variants: dict | None = None):
         if not isinstance(sources, (list, tuple)) or not sources:
             raise UserInputError("real.sources: expected a list of {type, root, up} entries")
         self.sources = []
@@ -193,6 +201,7 @@ class RealTargetsFamily(Family):
                                      "(`make data-real` fetches the FlightGear packages)")
             self.sources.append({"type": kind, "root": root, "up": up.lower()})
         self.val_fraction = val_fraction
+        self.variants = _checked_variants(variants)
         self.class_names = list(CLASSES)
         self.excluded: list[tuple[str, str]] = []  # (source path, why), filled by ``objects``
 
@@ -253,6 +262,8 @@ class RealTargetsFamily(Family):
             tasks.append(ShapeTask(self.split_of(item["group"], splits, seed), record_id,
                                    CLASSES.index(item["class"]), item["class"],
                                    int(stable_unit(f"{seed}:{item['source']}") * 2**32), source=item["source"]))
+        tasks += [variant_task(t, k) for t in tasks if t.split == "train"
+                  for k in range(1, self.variants["per_object"] + 1)]
         ids = [t.record_id for t in tasks]
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         if duplicates:  # two files of one group with one name: keep ids unique with a short hash
@@ -262,7 +273,23 @@ class RealTargetsFamily(Family):
         return tasks
 
     def generate(self, task: ShapeTask) -> Shape:
-        number, relative = task.source.split(":", 1)
+        source_id, _, variant = task.source.partition(VARIANT_MARK)
+        shape = self.generate_object(source_id)
+        if not variant:
+            return shape
+        factors = self.stretch_factors(task.seed)
+        mesh = shape.mesh.copy()
+        mesh.apply_scale(factors)
+        return Shape(mesh, {**shape.provenance, "variant": int(variant), "stretch": factors.round(6).tolist()})
+
+    def stretch_factors(self, seed: int) -> np.ndarray:
+        """The x, y, z stretch of a variant: log-uniform in ``variants.scale``, fixed by its seed."""
+        low, high = np.log(self.variants["scale"])
+        return np.exp(np.random.default_rng(seed).uniform(low, high, size=3))
+
+    def generate_object(self, source_id: str) -> Shape:
+        """The object of one source entry (``"<source number>:<relative path>"``) in the body frame."""
+        number, relative = source_id.split(":", 1)
         source = self.sources[int(number)]
         if source["type"] == "gazebo":
             from radar2shape.geometry.gazebo import load_gazebo_model
@@ -280,6 +307,29 @@ class RealTargetsFamily(Family):
         body = to_body_frame(mesh, source["up"])
         return Shape(body, {"generator": self.name, "source": f"{source['type']}:{relative}", "up": source["up"],
                             **provenance})
+
+
+def _checked_variants(variants: dict | None) -> dict:
+    """``variants`` with its defaults, or a UserInputError naming the bad field."""
+    merged = {"per_object": 0, "scale": [0.8, 1.25], **(variants or {})}
+    unknown = sorted(set(merged) - {"per_object", "scale"})
+    if unknown:
+        raise UserInputError(f"real.variants: unknown key(s) {unknown}; expected per_object, scale")
+    count, scale = merged["per_object"], merged["scale"]
+    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+        raise UserInputError(f"real.variants.per_object: expected a whole number >= 0, got {count!r}")
+    if (not isinstance(scale, (list, tuple)) or len(scale) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in scale)
+            or not 0 < scale[0] <= 1 <= scale[1]):
+        raise UserInputError(f"real.variants.scale: expected [low, high] with 0 < low <= 1 <= high, got {scale!r}")
+    return {"per_object": count, "scale": [float(scale[0]), float(scale[1])]}
+
+
+def variant_task(task: ShapeTask, k: int) -> ShapeTask:
+    """The ``k``-th stretched variant of ``task``: same split, class and group, its own id and seed."""
+    source = f"{task.source}{VARIANT_MARK}{k}"
+    return ShapeTask(task.split, f"{task.record_id}__v{k}", task.label, task.class_name,
+                     int(stable_unit(f"{task.seed}{VARIANT_MARK}{k}") * 2**32), source=source)
 
 
 def skip_reason_counts(skipped: list[dict]) -> dict[str, int]:

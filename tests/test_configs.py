@@ -314,6 +314,12 @@ def test_sbr_twins_differ_from_their_po_config_only_in_the_simulator():
         assert {**sbr_dict, "simulator": {}} == po_dict
 
 
+def test_real_variants_config_is_real_plus_variants():
+    real, variants = (yaml.safe_load((CONF / "data" / n).read_text()) for n in ("real.yaml", "real_variants.yaml"))
+    assert variants["family_options"].pop("variants") == {"per_object": 1, "scale": [0.8, 1.25]}
+    assert variants == real  # so data/real's records are its originals' (Makefile: data-real-variants)
+
+
 MODULES = sorted(p.name for p in (CONF / "data" / "module").glob("*.yaml"))
 
 

@@ -164,3 +164,36 @@ def test_real_flightgear_tree_splits_aircraft_types_whole():
     counts = collections.Counter(t.class_name for t in tasks)
     assert counts["airliner"] >= 50 and counts["fighter"] >= 15
     assert not any("/lights/" in t.source.lower() or "flare" in t.source for t in tasks)
+
+
+def test_variants_are_stretched_training_objects_only(tmp_path):
+    fake_sources(tmp_path)
+    splits = {"train": 0.5, "val": 0.25, "test": 0.25}
+    plain = RealTargetsFamily(sources(tmp_path)).plan(None, splits, seed=3)
+    family = RealTargetsFamily(sources(tmp_path), variants={"per_object": 2, "scale": [0.5, 2.0]})
+    tasks = family.plan(None, splits, seed=3)
+    originals, variants = tasks[:len(plain)], tasks[len(plain):]
+    assert originals == plain  # variants leave every original task (id, split, seed) as it was
+    train = [t for t in plain if t.split == "train"]
+    assert 0 < len(train) < len(plain) and len(variants) == 2 * len(train)
+    assert all(v.split == "train" for v in variants) and len({t.record_id for t in tasks}) == len(tasks)
+    for v in variants:
+        original = next(t for t in train if v.source.startswith(t.source + "#variant"))
+        assert (v.class_name, v.label) == (original.class_name, original.label)
+        assert v.record_id.startswith(original.record_id + "__v") and v.seed != original.seed
+    # A variant is its object stretched, vertex by vertex, by the factors its seed draws.
+    variant = variants[0]
+    original = family.generate_object(variant.source.split("#variant")[0]).mesh
+    stretched = family.generate(variant)
+    factors = np.asarray(stretched.provenance["stretch"])
+    assert np.all((factors >= 0.5) & (factors <= 2.0)) and np.ptp(factors) > 0.01
+    np.testing.assert_allclose(stretched.mesh.vertices, original.vertices * factors, rtol=1e-5, atol=1e-9)
+    assert family.generate(variant).provenance["stretch"] == stretched.provenance["stretch"]  # fixed by the seed
+
+
+@pytest.mark.parametrize("variants, field", [({"per_object": -1}, "per_object"), ({"per_object": 1.5}, "per_object"),
+                                             ({"scale": [1.2, 2.0]}, "scale"), ({"scale": [0.0, 1.0]}, "scale"),
+                                             ({"scale": 1.2}, "scale"), ({"count": 2}, "unknown key")])
+def test_bad_variants_name_the_field(tmp_path, variants, field):
+    with pytest.raises(UserInputError, match=field):
+        RealTargetsFamily(sources(fake_sources(tmp_path)), variants=variants)
