@@ -7,7 +7,8 @@
 Each ``--run LABEL SCORES.csv`` is a per-shape score file of a report (``scores/<run>.csv``, one row
 per test shape with its class ``label``); ``--data`` is the dataset whose manifest names the
 classes. One table per metric: rows = classes (with the number of test shapes), columns = runs,
-the best run of each class in bold; runs whose file has a Stage-1 ceiling column get its table too. Bad input is one ``error:`` line.
+the best run of each class in bold; a table holds the runs whose file has its column, so a Stage-1
+check's ceiling file (``scripts/stage1_fit_gap.py --scores``) joins the Stage-1 ceiling table only. Bad input is one ``error:`` line.
 """
 
 from __future__ import annotations
@@ -67,15 +68,19 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: --run {label}: {path} not found (expected a per-shape score file)", file=sys.stderr)
             return 2
         runs[label] = read_scores(Path(path))
+        if not any(key in (runs[label] or [{}])[0] for key in (*(m[0] for m in METRICS), CEILING)):
+            print(f"error: --run {label}: {path} has none of the columns {[m[0] for m in METRICS] + [CEILING]}",
+                  file=sys.stderr)
+            return 2
     parts = [f"# Scores per class ({args.data.name}, test split)", "",
              "Mean over each class's test shapes; best run of a class in bold. Made by "
              "`scripts/per_class_scores.py` from the report's per-shape scores:", "",
              *(f"- {label}: `{path}`" for label, path in args.run), ""]
-    parts += [table(runs, classes, key, header, higher) + "\n" for key, header, higher in METRICS]
-    latent = {label: rows for label, rows in runs.items() if rows and CEILING in rows[0]}
-    if latent:  # where Stage 2 stands against what its Stage 1 can represent, class by class
-        parts.append(table(latent, classes, CEILING, "Stage-1 ceiling IoU ↑ (latent models: their Stage 1 "
-                           "decoding the true shapes)", True) + "\n")
+    ceiling = (CEILING, "Stage-1 ceiling IoU ↑ (latent models: their Stage 1 decoding the true shapes)", True)
+    for key, header, higher in (*METRICS, ceiling):  # each table holds the runs whose file has its column
+        having = {label: rows for label, rows in runs.items() if rows and key in rows[0]}
+        if having:
+            parts.append(table(having, classes, key, header, higher) + "\n")
     write_text_atomic(args.out, "\n".join(parts))
     print(f"wrote {args.out}")
     return 0
