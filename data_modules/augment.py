@@ -17,20 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from radar2shape.radar.heading import roll_order, turn_rotation
+
 POINT_KEYS = ("vertices", "surface_points", "surface_normals", "sdf_points", "occ_points", "eval_points")
-
-
-def _roll_steps(roll_rad: np.ndarray) -> int:
-    """R, after checking that the roll axis is R equal steps over the full circle, mirror-closed."""
-    roll = np.asarray(roll_rad, dtype=np.float64).ravel()
-    count = len(roll)
-    step = 2.0 * np.pi / count
-    if count < 1 or not np.allclose(np.diff(roll), step, atol=1e-9):
-        raise ValueError("turn_and_mirror needs a roll axis of equal steps covering [0, 2 pi)")
-    if not np.isclose((2.0 * roll[0] / step) % 1.0, 0.0, atol=1e-9) and not np.isclose(
-            (2.0 * roll[0] / step) % 1.0, 1.0, atol=1e-9):
-        raise ValueError("turn_and_mirror: the roll axis must start at a multiple of half a step (mirror symmetry)")
-    return count
 
 
 def turn_and_mirror(sample_arrays: dict, shift: int, mirror: bool, roll_rad=None) -> dict:
@@ -43,19 +32,11 @@ def turn_and_mirror(sample_arrays: dict, shift: int, mirror: bool, roll_rad=None
     roll = sample_arrays.get("roll_rad") if roll_rad is None else roll_rad
     if roll is None:
         raise ValueError("turn_and_mirror needs the roll axis (roll_rad)")
-    count = _roll_steps(roll)
-    start_index = int(round(2.0 * float(np.ravel(roll)[0]) / (2.0 * np.pi / count)))  # 2 * roll0 in steps
-    order = np.arange(count)
-    if mirror:  # p -> -p: the cell at roll index r takes the response at -r (shifted by the start offset)
-        order = (-order - start_index) % count
-    order = np.roll(order, shift)
+    order = roll_order(roll, shift, mirror)
     for key in ("radar", "radar_mask"):
         if key in sample_arrays and np.ndim(sample_arrays[key]) >= 2:
             out[key] = np.asarray(sample_arrays[key])[:, order]
-    angle = 2.0 * np.pi * shift / count
-    rotation = np.array([[np.cos(angle), -np.sin(angle), 0.0], [np.sin(angle), np.cos(angle), 0.0], [0.0, 0.0, 1.0]])
-    if mirror:
-        rotation = rotation @ np.diag([1.0, -1.0, 1.0])
+    rotation = turn_rotation(len(order), shift, mirror)
     for key in POINT_KEYS:
         if key in sample_arrays:
             points = np.asarray(sample_arrays[key])

@@ -12,6 +12,8 @@ with ``skip_bad_records`` it is replaced deterministically and the skips are log
 
 from __future__ import annotations
 
+import copy
+
 import sys
 from collections import Counter
 from pathlib import Path
@@ -174,6 +176,16 @@ class ShapeDataModule(ReconstructionDataModule):
 
     def val_dataloader(self) -> DataLoader:
         return self._loader("val")
+
+    def unturned_train_dataloader(self) -> DataLoader:
+        """The training records in order, each in its stored (canonical) heading, whatever ``roll_augment``
+        says: for quantities kept per record, such as a Stage-1 latent cache."""
+        dataset = self.dataset("train")
+        if dataset.roll_augment:
+            dataset = copy.copy(dataset)
+            dataset.roll_augment = False
+        return DataLoader(dataset, batch_size=self.hparams.batch_size, num_workers=0,
+                          sampler=EpochSampler(len(dataset), shuffle=False, seed=self.hparams.seed))
 
     def test_dataloader(self) -> DataLoader:
         return self._loader(self.hparams.test_split, "test")

@@ -31,42 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-FLOOR_BELOW_PEAK_DB = 60.0  # dB maps are compared over [peak - 60 dB, peak]
+from radar2shape.radar.heading import estimate_turn, power_db
 
-
-def candidate_turns(count: int) -> list[tuple[int, bool]]:
-    """Every (shift, mirror) of a roll axis of ``count`` steps."""
-    return [(shift, mirror) for mirror in (False, True) for shift in range(count)]
-
-
-def db_map(power: np.ndarray) -> np.ndarray:
-    """``10 log10`` of a power map, floored ``FLOOR_BELOW_PEAK_DB`` below its peak."""
-    db = 10.0 * np.log10(np.maximum(power, 1e-300))
-    return np.maximum(db, db.max() - FLOOR_BELOW_PEAK_DB)
-
-
-def correlation(a: np.ndarray, b: np.ndarray) -> float:
-    """Pearson correlation of two maps of the same shape (0 when either is constant)."""
-    a, b = a.ravel() - a.mean(), b.ravel() - b.mean()
-    norm = math.sqrt(float(a @ a) * float(b @ b))
-    return float(a @ b) / norm if norm > 0 else 0.0
-
-
-def estimate_turn(observed: np.ndarray, candidate: np.ndarray, roll_rad: np.ndarray,
-                  band_average: bool = False) -> tuple[tuple[int, bool], np.ndarray]:
-    """The (shift, mirror) that turns ``candidate``'s response ``[A, R, F]`` (complex) closest to
-    ``observed``'s, and the correlation of every candidate turn (``candidate_turns`` order)."""
-    from data_modules.augment import turn_and_mirror
-
-    def power(response):
-        p = np.abs(response) ** 2
-        return p.mean(axis=-1) if band_average else p
-
-    target = db_map(power(observed))
-    turns = candidate_turns(len(roll_rad))
-    scores = np.array([correlation(target, db_map(power(turn_and_mirror({"radar": candidate}, s, m, roll_rad)["radar"])))
-                       for s, m in turns])
-    return turns[int(np.argmax(scores))], scores
+def search(observed: np.ndarray, candidate: np.ndarray, roll_rad: np.ndarray, band_average: bool) -> tuple[int, bool]:
+    """The turn of the complex response ``candidate`` closest to the complex ``observed`` (dB maps)."""
+    return estimate_turn(power_db(observed), power_db(candidate), roll_rad, band_average=band_average)[0]
 
 
 def placed(mesh_arrays: dict, turn: tuple[int, bool], roll_rad: np.ndarray):
@@ -143,10 +112,10 @@ def main(argv=None) -> int:
 
         row["iou_true_turn"], row["iou_canonical"] = iou_at(truth_turn), iou_at((0, False))
         for name, band in (("full", False), ("band", True)):
-            turn, _ = estimate_turn(observed["radar"], response, roll, band_average=band)
+            turn = search(observed["radar"], response, roll, band)
             row[f"iou_{name}"] = iou_at(turn)
             row[f"exact_{name}"] = turn == truth_turn
-            own, _ = estimate_turn(observed["radar"], record["radar"], roll, band_average=band)
+            own = search(observed["radar"], record["radar"], roll, band)
             row[f"own_iou_{name}"] = iou_at(own)  # the reconstruction placed where the true response points
             row[f"own_exact_{name}"] = own == truth_turn
         rows.append(row)

@@ -270,6 +270,20 @@ def test_roll_augment_turns_radar_and_points_together_exactly(parts_dataset):
     torch.testing.assert_close(item["surface_points"], _module(parts_dataset).dataset("val")[(0, 0)]["surface_points"])
 
 
+def test_unturned_train_loader_gives_every_record_in_its_stored_heading(parts_dataset):
+    """For per-record caches: in order, no ``roll_turn``, the plain items' points, even with roll_augment;
+    and the augmented training loader is still augmented after it."""
+    module = _module(parts_dataset, observability="full", roll_augment=True)
+    batches = list(module.unturned_train_dataloader())
+    plain = _module(parts_dataset, observability="full").dataset("train")
+    items = [item for batch in batches for item in (dict(zip(batch, v)) for v in zip(*batch.values()))]
+    assert [int(item["index"]) for item in items] == list(range(len(plain)))
+    for index, item in enumerate(items):
+        assert "roll_turn" not in item
+        torch.testing.assert_close(item["surface_points"], plain[(0, index)]["surface_points"], rtol=0, atol=0)
+    assert "roll_turn" in next(iter(module.train_dataloader()))
+
+
 def test_roll_augment_is_refused_for_roll_symmetric_data(frusta_dataset):
     with pytest.raises(UserInputError, match="roll_augment"):
         _module(frusta_dataset, cls=ProfileDataModule, roll_augment=True)

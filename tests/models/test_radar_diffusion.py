@@ -403,3 +403,43 @@ def test_init_weights_starts_from_a_trained_model_and_is_not_needed_to_load(stag
     torch.testing.assert_close(loaded.latent_out.weight, started.latent_out.weight)
     with pytest.raises(UserInputError, match="init_weights: .* not found"):
         tiny_model(stage1_ckpt, init_weights=str(init))
+
+
+def test_canonical_heading_trains_turned_radar_on_the_unturned_latents(stage1_ckpt):
+    """``canonical_heading``: a turned sample's target is its record's unturned latent from the cache,
+    whatever its turned points encode to; a record missing from the cache is one clear error."""
+    model = tiny_model(stage1_ckpt, canonical_heading=True).train()
+    points = sphere_batch()["surface_points"]
+    latent = torch.full_like(model.stage1.encode(points)[0][0], 0.5)
+    model._train_latents = {0: latent, 1: -latent}
+    batch = {"index": torch.tensor([1, 0]), "roll_turn": torch.tensor([5, 40]), "surface_points": points}
+    torch.testing.assert_close(model.encode_shapes(batch), torch.stack([-latent, latent]))
+    with pytest.raises(UserInputError, match="canonical_heading: a training record has no cached unturned latent"):
+        model.encode_shapes({**batch, "index": torch.tensor([1, 7])})
+    with pytest.raises(UserInputError, match="contradicts"):
+        tiny_model(stage1_ckpt, canonical_heading=True, cache_turned_latents=True)
+
+
+def test_place_in_heading_turns_the_mesh_into_the_observed_heading(stage1_ckpt):
+    """The observed radar is an L-shaped solid's PO response turned by (3 steps, mirrored): the
+    canonical mesh placed by the model is that solid turned the same way (vertex for vertex)."""
+    import trimesh
+
+    from data_modules.augment import turn_and_mirror
+    from radar2shape.radar import simulate
+    from radar2shape.radar.heading import turn_rotation
+
+    long = trimesh.creation.box((0.8, 0.15, 0.1))
+    foot = trimesh.creation.box((0.15, 0.35, 0.1), trimesh.transformations.translation_matrix((0.325, 0.25, 0.0)))
+    mesh = trimesh.util.concatenate([long, foot])
+    model = tiny_model(stage1_ckpt, canonical_heading=True).eval()
+    model.set_radar_spec(RadarStub(radar_batch(1), GRID).radar_spec)
+    grid = model.radar_spec.grid
+    response = simulate(mesh, grid.aspect_rad, grid.roll_rad, grid.freq_hz)  # size_m 1: the mesh as it is
+    observed = turn_and_mirror({"radar": model.radar_spec.to_db(response)}, 3, True, roll_rad=grid.roll_rad)["radar"]
+    batch = {"radar": torch.as_tensor(model.radar_spec.normalise(observed))[None],
+             "radar_mask": torch.ones(1, 4, 8, dtype=torch.bool)}
+    placed = model.place_in_heading(mesh, batch, 0)
+    np.testing.assert_allclose(placed.vertices, mesh.vertices @ turn_rotation(8, 3, True).T, atol=1e-9)
+    assert placed.volume == pytest.approx(mesh.volume, rel=1e-9)  # still outward after the mirror
+    assert tiny_model(stage1_ckpt).place_in_heading(mesh, batch, 0) is mesh  # other models: as it is

@@ -167,7 +167,8 @@ def reconstruct_best_candidate(model, verifier, grid: GridInput, candidates: int
     from radar2shape.models.verifier import score_candidates
     from radar2shape.reconstruction import Reconstruction
 
-    latents, predicted = score_candidates(model, verifier, model_batch(model.radar_spec, grid), candidates, steps, seed)
+    batch = model_batch(model.radar_spec, grid)
+    latents, predicted = score_candidates(model, verifier, batch, candidates, steps, seed)
     best = int(predicted.argmax())
     mesh, _ = model.mean_mesh(latents[best:best + 1], resolution)
     spread = np.zeros(0, dtype=np.float32)
@@ -175,7 +176,7 @@ def reconstruct_best_candidate(model, verifier, grid: GridInput, candidates: int
         with torch.no_grad():
             vertices = torch.as_tensor(mesh.vertices, dtype=torch.float32, device=model.device)
             spread = model.sdf_function(latents)(vertices).std(0, unbiased=False).cpu().numpy()
-    return Reconstruction(mesh=mesh), spread, best, predicted.cpu().numpy()
+    return Reconstruction(mesh=model.place_in_heading(mesh, batch, 0)), spread, best, predicted.cpu().numpy()
 
 
 def save_png(path: Path, db: np.ndarray, spec: RadarSpec, mesh, title: str) -> None:

@@ -114,6 +114,11 @@ class RadarDiffusion(ReconstructionModel):
         cache_turned_latents: with the DataModule's ``roll_augment``, keep each (record, turn)'s
             latents the first time they are encoded and reuse them, as the cache above does for the
             unturned pose (one record has 2 R poses, so Stage 1 stops running once most were seen).
+        canonical_heading: learn every shape in its canonical heading: with ``roll_augment`` the
+            target of a turned radar is its record's unturned latent, so the network reads the shape
+            and not the heading (which the axis-aligned Stage-1 planes draw poorly when turned,
+            docs/radar_diffusion.md); :meth:`reconstruct` then finds the heading from the radar
+            (:meth:`place_in_heading`) and turns the mesh into it.
         num_freq: number of radar frequencies F, cut into L contiguous blocks (equal when L divides F).
         dim, n_layers, n_heads, mlp_ratio, dropout: Transformer width D, depth, heads, MLP ratio.
         encoder_depth, encoder_width: ResNet depth (18/34/50/101/152) and width multiplier.
@@ -149,6 +154,7 @@ class RadarDiffusion(ReconstructionModel):
         stage1_hparams: dict | None = None,
         latent_cache: str | None = None,
         cache_turned_latents: bool = False,
+        canonical_heading: bool = False,
         init_weights: str | None = None,
         num_freq: int = 64,
         dim: int = 512,
@@ -186,6 +192,9 @@ class RadarDiffusion(ReconstructionModel):
             raise UserInputError(f"RadarDiffusion: encoder_stem_stride must be 1 or 2, got {encoder_stem_stride}")
         if loss not in ("v", "eps"):
             raise UserInputError(f"RadarDiffusion: loss must be 'v' or 'eps', got {loss!r}")
+        if canonical_heading and cache_turned_latents:
+            raise UserInputError("RadarDiffusion: canonical_heading learns unturned latents; cache_turned_latents "
+                                 "(turned ones) contradicts it: set one of them")
         if loss == "v" and not eps_skip:
             raise UserInputError("RadarDiffusion: loss='v' needs eps_skip=true (the network output is the velocity)")
         # A fresh contextvars.Context: the Lightning CLI hands its hyperparameters (a ContextVar) to
@@ -262,6 +271,12 @@ class RadarDiffusion(ReconstructionModel):
         """
         index = batch.get("index")
         if self.training and index is not None:
+            if "roll_turn" in batch and self.hparams.get("canonical_heading", False):
+                rows = [self._train_latents.get(int(i)) for i in index]
+                if any(r is None for r in rows):
+                    raise UserInputError("canonical_heading: a training record has no cached unturned latent "
+                                         "(the latent_cache must hold every training record)")
+                return torch.stack(rows).to(self.device)
             if "roll_turn" in batch:
                 if self.hparams.get("cache_turned_latents", False):
                     return self._cached_turned(batch, index, batch["roll_turn"])
@@ -306,7 +321,9 @@ class RadarDiffusion(ReconstructionModel):
         if self.hparams.latent_cache:
             self._train_latents = load_latent_cache(self.hparams.latent_cache)
         elif datamodule is not None:
-            self._train_latents = self.collect_train_latents(datamodule.train_dataloader())
+            canonical = self.hparams.get("canonical_heading", False) and hasattr(datamodule, "unturned_train_dataloader")
+            self._train_latents = self.collect_train_latents(
+                datamodule.unturned_train_dataloader() if canonical else datamodule.train_dataloader())
         if not bool(self.standardiser.ready):
             if not self._train_latents:
                 raise UserInputError("no training latents to standardise: give a DataModule or latent_cache")
@@ -408,10 +425,35 @@ class RadarDiffusion(ReconstructionModel):
         """
         latents = self.sample_latents(batch, num_samples=num_samples, steps=steps, sample_seed=sample_seed)
         out = []
-        for h in latents:
+        for i, h in enumerate(latents):
             mesh, spread = self.mean_mesh(h, resolution)
-            out.append((Reconstruction(mesh=mesh), spread))
+            out.append((Reconstruction(mesh=self.place_in_heading(mesh, batch, i)), spread))
         return out
+
+    def place_in_heading(self, mesh: trimesh.Trimesh, batch: dict, i: int) -> trimesh.Trimesh:
+        """``mesh`` turned into the heading that input ``i`` of ``batch`` shows (``canonical_heading``
+        models; others return it as it is).
+
+        The canonical mesh is simulated once with PO on the model's radar grid; of the 2R turns by
+        whole roll steps and the mirror, which only re-index that response, the one whose
+        band-averaged dB map correlates best with the observed cells is applied to the mesh
+        (:mod:`radar2shape.radar.heading`; ``scripts/heading_from_radar.py`` measures it).
+        """
+        if not self.hparams.get("canonical_heading", False) or len(mesh.faces) == 0:
+            return mesh
+        from radar2shape.geometry.normalise import scaled
+        from radar2shape.radar import simulate
+        from radar2shape.radar.heading import estimate_turn, turn_rotation
+
+        grid = self.radar_spec.grid
+        observed = self.radar_spec.denormalise(batch["radar"][i].detach().cpu().numpy())
+        mask = batch["radar_mask"][i].detach().cpu().numpy().astype(bool)
+        simulated = self.radar_spec.to_db(simulate(scaled(mesh, grid.size_m), grid.aspect_rad, grid.roll_rad, grid.freq_hz))
+        (shift, mirror), _ = estimate_turn(observed, simulated, grid.roll_rad, mask=mask, band_average=True)
+        placed = mesh.copy()
+        placed.apply_transform(np.block([[turn_rotation(len(grid.roll_rad), shift, mirror), np.zeros((3, 1))],
+                                         [np.zeros((1, 3)), np.ones((1, 1))]]))
+        return placed
 
     @torch.no_grad()
     def reconstruct_ceiling(self, batch: dict) -> list[Reconstruction] | None:

@@ -61,6 +61,10 @@ class RadarSpec:
         """dBsm of a complex response, clipped at this spec's floor."""
         return to_db(response, self.floor_db)
 
+    def denormalise(self, x: np.ndarray) -> np.ndarray:
+        """dB from a model input ``(dB - mean) / std`` (masked cells come back as the train mean)."""
+        return np.asarray(x, dtype=np.float64) * self.db_std + self.db_mean
+
     def normalise(self, db: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
         """float32 ``(dB - mean) / std``; 0 (the train mean) in masked cells and wherever dB is NaN.
 
