@@ -31,6 +31,8 @@ def parse_args(argv):
     parser.add_argument("--data", type=Path, required=True, help="the dataset whose test split is turned")
     parser.add_argument("--classes", nargs="+", required=True)
     parser.add_argument("--yaw-deg", type=float, nargs="+", default=[37.0])
+    parser.add_argument("--whole-steps", action="store_true",
+                        help="a canonical-heading model places its mesh at the nearest whole roll step only")
     parser.add_argument("--out", type=Path, required=True)
     return parser.parse_args(argv)
 
@@ -78,6 +80,8 @@ def main(argv=None) -> int:
 
     torch.set_num_threads(2)
     model = load_model(args.ckpt)
+    if args.whole_steps:
+        model.hparams.refine_heading = False
     dm = ShapeDataModule(root=str(args.data))
     records = dm.records("test")
     labels = dm.manifest["labels"]["test"]
@@ -97,7 +101,8 @@ def main(argv=None) -> int:
     lines = [f"# Turned objects: {args.ckpt}", "",
              f"Test objects of {', '.join(args.classes)} in `{args.data}`, turned about z, simulated (PO) on the "
              "model's grid with every cell observed, reconstructed and scored against the turned mesh "
-             f"(`scripts/yaw_check.py`, {time.perf_counter() - start:.0f} s).", "",
+             f"(`scripts/yaw_check.py`{' --whole-steps' if args.whole_steps else ''}, "
+             f"{time.perf_counter() - start:.0f} s).", "",
              "| object | class | " + " | ".join(f"IoU at {y:g} deg" for y in yaws) + " |", "|---" * (len(yaws) + 2) + "|"]
     lines += [f"| {rid} | {name} | " + " | ".join(f"{s['iou']:.3f}" for s in scores) + " |" for rid, name, scores in rows]
     iou = np.array([[s["iou"] for s in scores] for _, _, scores in rows])

@@ -118,7 +118,8 @@ class RadarDiffusion(ReconstructionModel):
             target of a turned radar is its record's unturned latent, so the network reads the shape
             and not the heading (which the axis-aligned Stage-1 planes draw poorly when turned,
             docs/radar_diffusion.md); :meth:`reconstruct` then finds the heading from the radar
-            (:meth:`place_in_heading`) and turns the mesh into it.
+            (:meth:`place_in_heading`) and turns the mesh into it. refine_heading: place it between
+            roll steps where the neighbouring turns say so (else at the nearest whole step).
         num_freq: number of radar frequencies F, cut into L contiguous blocks (equal when L divides F).
         dim, n_layers, n_heads, mlp_ratio, dropout: Transformer width D, depth, heads, MLP ratio.
         encoder_depth, encoder_width: ResNet depth (18/34/50/101/152) and width multiplier.
@@ -155,6 +156,7 @@ class RadarDiffusion(ReconstructionModel):
         latent_cache: str | None = None,
         cache_turned_latents: bool = False,
         canonical_heading: bool = False,
+        refine_heading: bool = True,
         init_weights: str | None = None,
         num_freq: int = 64,
         dim: int = 512,
@@ -435,24 +437,27 @@ class RadarDiffusion(ReconstructionModel):
         models; others return it as it is).
 
         The canonical mesh is simulated once with PO on the model's radar grid; of the 2R turns by
-        whole roll steps and the mirror, which only re-index that response, the one whose
-        band-averaged dB map correlates best with the observed cells is applied to the mesh
-        (:mod:`radar2shape.radar.heading`; ``scripts/heading_from_radar.py`` measures it).
+        whole roll steps and the mirror, which only re-index that response, the one whose dB map
+        correlates best with the observed cells wins, its shift refined between steps by the
+        neighbouring correlations (:mod:`radar2shape.radar.heading`; ``scripts/heading_from_radar.py``
+        measures the search on real objects).
         """
         if not self.hparams.get("canonical_heading", False) or len(mesh.faces) == 0:
             return mesh
         from radar2shape.geometry.normalise import scaled
         from radar2shape.radar import simulate
-        from radar2shape.radar.heading import estimate_turn, turn_rotation
+        from radar2shape.radar.heading import estimate_turn, refined_shift, turn_rotation
 
         grid = self.radar_spec.grid
         observed = self.radar_spec.denormalise(batch["radar"][i].detach().cpu().numpy())
         mask = batch["radar_mask"][i].detach().cpu().numpy().astype(bool)
         simulated = self.radar_spec.to_db(simulate(scaled(mesh, grid.size_m), grid.aspect_rad, grid.roll_rad, grid.freq_hz))
-        (shift, mirror), _ = estimate_turn(observed, simulated, grid.roll_rad, mask=mask, band_average=True)
+        turn, scores = estimate_turn(observed, simulated, grid.roll_rad, mask=mask)
+        count = len(grid.roll_rad)
+        shift = refined_shift(scores, turn, count) if self.hparams.get("refine_heading", True) else turn[0]
+        rotation = turn_rotation(count, shift, turn[1])
         placed = mesh.copy()
-        placed.apply_transform(np.block([[turn_rotation(len(grid.roll_rad), shift, mirror), np.zeros((3, 1))],
-                                         [np.zeros((1, 3)), np.ones((1, 1))]]))
+        placed.apply_transform(np.block([[rotation, np.zeros((3, 1))], [np.zeros((1, 3)), np.ones((1, 1))]]))
         return placed
 
     @torch.no_grad()

@@ -8,7 +8,8 @@ this way; a model that reconstructs objects in their canonical heading uses :fun
 to place its reconstruction in the observed heading.
 
 A turn is ``(shift, mirror)``: the point map ``x -> Rz(shift * 2 pi / R) @ M @ x`` with
-``M = diag(1, -1, 1)`` when ``mirror``.
+``M = diag(1, -1, 1)`` when ``mirror``. A real object is turned by any angle, not by whole steps:
+:func:`refined_shift` reads a fractional shift off the correlations of the neighbouring turns.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ def roll_order(roll_rad, shift: int, mirror: bool) -> np.ndarray:
     return np.roll(order, shift)
 
 
-def turn_rotation(count: int, shift: int, mirror: bool) -> np.ndarray:
+def turn_rotation(count: int, shift: float, mirror: bool) -> np.ndarray:
     """The 3x3 point map of the turn (shift, mirror) on a roll axis of ``count`` steps."""
     angle = 2.0 * np.pi * shift / count
     rotation = np.array([[np.cos(angle), -np.sin(angle), 0.0], [np.sin(angle), np.cos(angle), 0.0], [0.0, 0.0, 1.0]])
@@ -93,3 +94,15 @@ def estimate_turn(observed_db: np.ndarray, candidate_db: np.ndarray, roll_rad, m
     target = observed_db[keep]
     scores = np.array([correlation(target, candidate_db[:, roll_order(roll_rad, s, m)][keep]) for s, m in turns])
     return turns[int(np.argmax(scores))], scores
+
+
+def refined_shift(scores: np.ndarray, turn: tuple[int, bool], count: int) -> float:
+    """The shift of ``turn`` moved to the vertex of the parabola through the correlations of the
+    shifts one step either side (same mirror), within half a step: the heading between two steps."""
+    shift, mirror = turn
+    offset = count if mirror else 0
+    left, centre, right = (scores[offset + (shift + d) % count] for d in (-1, 0, 1))
+    curvature = left - 2.0 * centre + right
+    if curvature >= 0:  # not a peak (flat or a tie): keep the whole step
+        return float(shift)
+    return float(shift + np.clip(0.5 * (left - right) / curvature, -0.5, 0.5))
