@@ -44,6 +44,8 @@ MODEL_TITLES = {
     "radar2shape_circ_steps12k_k8": "Radar2Shape, circular roll padding, Stage 2 for 11,960 steps, mean of 8 samples",
     "radar2shape_s1long": "Radar2Shape, Stage 1 for 200 epochs, Stage 2 for 4,160 steps",
     "radar2shape_s1long_steps12k": "Radar2Shape, Stage 1 for 200 epochs, Stage 2 for 11,960 steps",
+    "radar2shape_heading": "Radar2Shape, shapes learned in their canonical heading, heading by PO search",
+    "radar2shape_heading_oracle": "Radar2Shape, shapes learned in their canonical heading, true heading given (oracle)",
     "diffusion_sdf": "Diffusion-SDF",
     "tmnet": "TMNet",
     "list": "LIST",
