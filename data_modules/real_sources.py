@@ -311,6 +311,8 @@ class RealTargetsFamily(Family):
 
 def _checked_variants(variants: dict | None) -> dict:
     """``variants`` with its defaults, or a UserInputError naming the bad field."""
+    if variants is not None and not isinstance(variants, dict):
+        raise UserInputError(f"real.variants: expected a mapping {{per_object, scale}}, got {variants!r}")
     merged = {"per_object": 0, "scale": [0.8, 1.25], **(variants or {})}
     unknown = sorted(set(merged) - {"per_object", "scale"})
     if unknown:

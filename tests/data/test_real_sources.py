@@ -193,7 +193,8 @@ def test_variants_are_stretched_training_objects_only(tmp_path):
 
 @pytest.mark.parametrize("variants, field", [({"per_object": -1}, "per_object"), ({"per_object": 1.5}, "per_object"),
                                              ({"scale": [1.2, 2.0]}, "scale"), ({"scale": [0.0, 1.0]}, "scale"),
-                                             ({"scale": 1.2}, "scale"), ({"count": 2}, "unknown key")])
+                                             ({"scale": 1.2}, "scale"), ({"count": 2}, "unknown key"),
+                                             ([1, 2], "expected a mapping")])
 def test_bad_variants_name_the_field(tmp_path, variants, field):
     with pytest.raises(UserInputError, match=field):
         RealTargetsFamily(sources(fake_sources(tmp_path)), variants=variants)
