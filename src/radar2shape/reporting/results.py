@@ -150,19 +150,18 @@ def _fit_gap_test_iou(root: Path, path: Path) -> str:
     return row.split("|")[4].split("±")[0].strip()
 
 
-def paired_section(root: Path, folder: Path, title: str, text: str) -> str:
-    """A grid's Table-1 section with its diagnostics, once its report and its paired table exist."""
+def paired_section(root: Path, folder: Path, title: str, text) -> str:
+    """A grid's Table-1 section with its diagnostics, once its report and its paired table exist;
+    ``text()`` is called only then (it may read the reports it links)."""
     if not _reports_present(root, folder, "paired.md"):
         return ""
-    return table1_section(root, folder, title, text, "Diagnostics:")
+    return table1_section(root, folder, title, text(), "Diagnostics:")
 
 
 def table1_real_s1long(root: Path) -> str:
     """The real-target rows on a Stage 1 trained 200 epochs."""
-    if not _reports_present(root, TABLE1_REAL_S1LONG, "paired.md"):
-        return ""  # the text below reads the fit-gap reports
     return paired_section(
-        root, TABLE1_REAL_S1LONG, "Real targets, Stage 1 trained longer",
+        root, TABLE1_REAL_S1LONG, "Real targets, Stage 1 trained longer", lambda:
         "The row above on a Stage 1 trained for 200 epochs (5,200 steps, learning rate halved every 2,000) "
         "instead of 60, with Stage 2 for 4,160 steps (halved every 1,000) and for the row above's 11,960 "
         "(halved every 3,000). Paired with the rows above: "
@@ -181,7 +180,7 @@ TABLE1_REAL_SEEDS = Path("reports/table1-real-seeds")
 def table1_real_seeds(root: Path) -> str:
     """Other seeds of the shipped real model's Stage 2."""
     return paired_section(
-        root, TABLE1_REAL_SEEDS, "Real targets, other Stage-2 seeds",
+        root, TABLE1_REAL_SEEDS, "Real targets, other Stage-2 seeds", lambda:
         "The shipped `real` model's Stage-2 recipe with seeds other than its 0 (the grid's `-seedN` runs), "
         "on the very Stage 1 the shipped file holds, tested the same way. Paired with seed 0 per seed: "
         f"[paired.md]({link(TABLE1_REAL_SEEDS / 'paired.md')}).")
@@ -193,7 +192,7 @@ TABLE1_REAL_HEADING = Path("reports/table1-real-heading")
 def table1_real_heading(root: Path) -> str:
     """Real targets with every shape learned in its canonical heading."""
     return paired_section(
-        root, TABLE1_REAL_HEADING, "Real targets, shapes learned in their canonical heading",
+        root, TABLE1_REAL_HEADING, "Real targets, shapes learned in their canonical heading", lambda:
         "Stage 1 trained on canonical headings only, Stage 2 on turned radar with the unturned latents as "
         "targets (`canonical_heading`), the reconstruction placed in the observed heading by a PO search "
         "(docs/radar_diffusion.md, \"Objects in any heading\"); otherwise the shipped real model's Stage-2 "
