@@ -70,6 +70,9 @@ class ShapeDataModule(ReconstructionDataModule):
         roll_augment: turn each training sample about z by a random whole number of roll steps and
             mirror it with probability 1/2 (``data_modules.augment``): exact, since the response
             only moves along roll, so one record gives 2R samples (the 3D data only).
+        roll_augment_step: turn by multiples of this many roll steps only (it must divide R): R/4
+            gives the 8 poses that keep the object's axes on the Stage-1 planes (quarter turns and
+            the mirror), which long thin objects need (docs/sdf_vae.md).
         test_split: the split ``radar2shape test`` scores, with the test split's points ("val" chooses
             a decoding setting, such as a surface level, without looking at the test split).
     """
@@ -83,7 +86,8 @@ class ShapeDataModule(ReconstructionDataModule):
                  train_noise_db: float | tuple[float, float] | None = None, test_noise_db: float | None = None,
                  points: dict[str, dict[str, int]] | None = None, pin_memory: bool = False,
                  mask_rule: str = "per_axis", noise_reference: str = "absolute", cache_records: bool = False,
-                 skip_bad_records: bool = False, roll_augment: bool = False, test_split: str = "test"):
+                 skip_bad_records: bool = False, roll_augment: bool = False, roll_augment_step: int = 1,
+                 test_split: str = "test"):
         super().__init__()
         self.save_hyperparameters()
         self.root = Path(root)
@@ -99,6 +103,9 @@ class ShapeDataModule(ReconstructionDataModule):
             raise UserInputError(f"test_split: expected 'val' or 'test', got {test_split!r}")
         if roll_augment and self.roll_symmetric:
             raise UserInputError("roll_augment: roll-symmetric data has one roll angle; turning it changes nothing")
+        roll_count = len(self.radar_spec.grid.roll_rad)
+        if roll_augment_step < 1 or (not self.roll_symmetric and roll_count % roll_augment_step):
+            raise UserInputError(f"roll_augment_step: expected a divisor of the {roll_count} roll steps, got {roll_augment_step}")
         for split in ("train", "test"):
             self.transform(split)  # bad observability, mask or noise options fail here, not mid-epoch
 
@@ -144,6 +151,7 @@ class ShapeDataModule(ReconstructionDataModule):
                 records, self.manifest["labels"][split], self.transform(split), self.points[points],
                 train=split == "train", seed=self.hparams.seed, cache=self.hparams.cache_records,
                 skip_bad=self.hparams.skip_bad_records, roll_augment=self.hparams.roll_augment and split == "train",
+                roll_augment_step=self.hparams.roll_augment_step,
             )
         return self.datasets[split, points]
 

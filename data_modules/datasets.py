@@ -86,7 +86,8 @@ class RecordDataset(Dataset):
     """
 
     def __init__(self, records: RecordSet, labels: list[int], transform: RadarTransform, points: dict[str, int],
-                 train: bool, seed: int = 0, cache: bool = False, skip_bad: bool = False, roll_augment: bool = False):
+                 train: bool, seed: int = 0, cache: bool = False, skip_bad: bool = False, roll_augment: bool = False,
+                 roll_augment_step: int = 1):
         unknown = sorted(set(points) - set(POINT_KEYS))
         if unknown:
             raise ValueError(f"points: unknown subset(s) {unknown}; expected some of {sorted(POINT_KEYS)}")
@@ -96,7 +97,7 @@ class RecordDataset(Dataset):
         self.keys = ["radar"] + [key for name in self.points for key in POINT_KEYS[name]] + self.extra_keys()
         self.cache: dict[int, dict] | None = {} if cache else None
         self.skip_bad = skip_bad
-        self.roll_augment = roll_augment
+        self.roll_augment, self.roll_augment_step = roll_augment, int(roll_augment_step)
         self._reported: set[int] = set()  # bad records already warned about in this process
 
     def read(self, index: int) -> dict:
@@ -112,7 +113,7 @@ class RecordDataset(Dataset):
         return []
 
     def turned(self, record: dict, epoch: int, index: int) -> dict:
-        """``record`` turned by a random whole number of roll steps and maybe mirrored (exact).
+        """``record`` turned by a random multiple of ``roll_augment_step`` roll steps and maybe mirrored (exact).
 
         The draw has its own generator, so the mask, noise and point subsets of the item are the
         ones it would have without the augmentation. The item carries the turn as ``roll_turn``
@@ -122,7 +123,8 @@ class RecordDataset(Dataset):
 
         roll = self.transform.spec.grid.roll_rad
         draw = np.random.default_rng([*self.seed_words(epoch, index), AUGMENT_STREAM])
-        shift, mirror = int(draw.integers(len(roll))), bool(draw.integers(2))
+        step = self.roll_augment_step
+        shift, mirror = step * int(draw.integers(len(roll) // step)), bool(draw.integers(2))
         return {**turn_and_mirror(record, shift, mirror, roll_rad=roll), "roll_turn": np.int64(shift + len(roll) * mirror)}
 
     def __len__(self) -> int:

@@ -270,6 +270,29 @@ def test_roll_augment_turns_radar_and_points_together_exactly(parts_dataset):
     torch.testing.assert_close(item["surface_points"], _module(parts_dataset).dataset("val")[(0, 0)]["surface_points"])
 
 
+def test_roll_augment_step_turns_by_its_multiples_only(parts_dataset):
+    """``roll_augment_step`` = R/4: every draw is a quarter turn (mirrored or not), all 8 of them occur,
+    and the item is the plain one turned exactly that way; a step that does not divide R is refused."""
+    plain = _module(parts_dataset, observability="full").dataset("train")
+    count = len(plain.transform.spec.grid.roll_rad)
+    quarter = _module(parts_dataset, observability="full", roll_augment=True, roll_augment_step=count // 4).dataset("train")
+    seen = set()
+    for epoch, index in [(e, i) for e in range(8) for i in range(len(plain))]:
+        a, b = plain[(epoch, index)], quarter[(epoch, index)]
+        shift, mirror = int(b["roll_turn"]) % count, bool(int(b["roll_turn"]) // count)
+        assert shift % (count // 4) == 0
+        angle = 2 * np.pi * shift / count
+        rotation = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
+        rotation = rotation @ np.diag([1.0, -1.0 if mirror else 1.0, 1.0])
+        np.testing.assert_allclose(b["surface_points"].double().numpy(), a["surface_points"].double().numpy() @ rotation.T,
+                                   atol=1e-5)
+        seen.add((shift, mirror))
+    assert len(seen) == 8
+    for bad in (0, 3 if count % 3 else 5):
+        with pytest.raises(UserInputError, match=f"roll_augment_step: expected a divisor of the {count} roll steps"):
+            _module(parts_dataset, roll_augment=True, roll_augment_step=bad)
+
+
 def test_unturned_train_loader_gives_every_record_in_its_stored_heading(parts_dataset):
     """For per-record caches: in order, no ``roll_turn``, the plain items' points, even with roll_augment;
     and the augmented training loader is still augmented after it."""
