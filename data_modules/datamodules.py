@@ -73,6 +73,9 @@ class ShapeDataModule(ReconstructionDataModule):
         roll_augment_step: turn by multiples of this many roll steps only (it must divide R): R/4
             gives the 8 poses that keep the object's axes on the Stage-1 planes (quarter turns and
             the mirror), which long thin objects need (docs/sdf_vae.md).
+        roll_augment_skip_classes: class names whose training samples ``roll_augment`` leaves in their
+            stored heading: classes whose files share a front (every aircraft's nose along +x), for a
+            Stage 1 that draws them in that frame only (docs/radar_diffusion.md, "Objects in any heading").
         test_split: the split ``radar2shape test`` scores, with the test split's points ("val" chooses
             a decoding setting, such as a surface level, without looking at the test split).
     """
@@ -87,7 +90,7 @@ class ShapeDataModule(ReconstructionDataModule):
                  points: dict[str, dict[str, int]] | None = None, pin_memory: bool = False,
                  mask_rule: str = "per_axis", noise_reference: str = "absolute", cache_records: bool = False,
                  skip_bad_records: bool = False, roll_augment: bool = False, roll_augment_step: int = 1,
-                 test_split: str = "test"):
+                 roll_augment_skip_classes: list[str] | None = None, test_split: str = "test"):
         super().__init__()
         self.save_hyperparameters()
         self.root = Path(root)
@@ -106,8 +109,16 @@ class ShapeDataModule(ReconstructionDataModule):
         roll_count = len(self.radar_spec.grid.roll_rad)
         if roll_augment_step < 1 or (not self.roll_symmetric and roll_count % roll_augment_step):
             raise UserInputError(f"roll_augment_step: expected a divisor of the {roll_count} roll steps, got {roll_augment_step}")
+        self.unturned_labels = frozenset(self.labels_of("roll_augment_skip_classes", roll_augment_skip_classes or []))
         for split in ("train", "test"):
             self.transform(split)  # bad observability, mask or noise options fail here, not mid-epoch
+
+    def labels_of(self, field: str, names: list[str]) -> list[int]:
+        """The label of each class name in ``names`` (an option ``field``); an unknown name is one error."""
+        unknown = [name for name in names if name not in self.class_names]
+        if unknown:
+            raise UserInputError(f"{field}: unknown class(es) {unknown}; the data's classes are {self.class_names}")
+        return [self.class_names.index(name) for name in names]
 
     @property
     def radar_spec(self) -> RadarSpec:
@@ -151,7 +162,7 @@ class ShapeDataModule(ReconstructionDataModule):
                 records, self.manifest["labels"][split], self.transform(split), self.points[points],
                 train=split == "train", seed=self.hparams.seed, cache=self.hparams.cache_records,
                 skip_bad=self.hparams.skip_bad_records, roll_augment=self.hparams.roll_augment and split == "train",
-                roll_augment_step=self.hparams.roll_augment_step,
+                roll_augment_step=self.hparams.roll_augment_step, unturned_labels=self.unturned_labels,
             )
         return self.datasets[split, points]
 

@@ -87,7 +87,7 @@ class RecordDataset(Dataset):
 
     def __init__(self, records: RecordSet, labels: list[int], transform: RadarTransform, points: dict[str, int],
                  train: bool, seed: int = 0, cache: bool = False, skip_bad: bool = False, roll_augment: bool = False,
-                 roll_augment_step: int = 1):
+                 roll_augment_step: int = 1, unturned_labels: frozenset[int] = frozenset()):
         unknown = sorted(set(points) - set(POINT_KEYS))
         if unknown:
             raise ValueError(f"points: unknown subset(s) {unknown}; expected some of {sorted(POINT_KEYS)}")
@@ -98,6 +98,7 @@ class RecordDataset(Dataset):
         self.cache: dict[int, dict] | None = {} if cache else None
         self.skip_bad = skip_bad
         self.roll_augment, self.roll_augment_step = roll_augment, int(roll_augment_step)
+        self.unturned_labels = unturned_labels  # classes roll_augment leaves in their stored heading
         self._reported: set[int] = set()  # bad records already warned about in this process
 
     def read(self, index: int) -> dict:
@@ -169,8 +170,9 @@ class RecordDataset(Dataset):
         """The item of record ``index`` in ``epoch`` (no substitution)."""
         rng = self.rng(epoch, index)
         record = self.read(index)
-        if self.roll_augment:
-            record = self.turned(record, epoch, index)
+        if self.roll_augment:  # a skipped class says it is unturned, so batches collate
+            unturned = self.labels[index] in self.unturned_labels
+            record = {**record, "roll_turn": np.int64(0)} if unturned else self.turned(record, epoch, index)
         radar, mask = self.radar(record["radar"], rng, index)
         item = {"radar": radar, "radar_mask": mask,
                 "label": np.int64(self.labels[index]), "index": np.int64(index)}

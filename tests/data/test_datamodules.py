@@ -293,6 +293,27 @@ def test_roll_augment_step_turns_by_its_multiples_only(parts_dataset):
             _module(parts_dataset, roll_augment=True, roll_augment_step=bad)
 
 
+def test_roll_augment_skip_classes_leaves_those_classes_in_their_stored_heading(parts_dataset):
+    """The named class's items are the plain ones with ``roll_turn`` 0 (so batches of both kinds
+    collate); the other classes are still turned; an unknown class name is one error naming the field."""
+    plain = _module(parts_dataset, observability="full")
+    skipped_class = plain.class_names[plain.dataset("train").labels[0]]
+    module = _module(parts_dataset, observability="full", roll_augment=True, roll_augment_skip_classes=[skipped_class])
+    dataset, reference = module.dataset("train"), plain.dataset("train")
+    turns = {True: set(), False: set()}
+    for epoch, index in [(e, i) for e in range(3) for i in range(len(dataset))]:
+        item = dataset[(epoch, index)]
+        skipped = plain.class_names[dataset.labels[index]] == skipped_class
+        turns[skipped].add(int(item["roll_turn"]))
+        if skipped:
+            torch.testing.assert_close(item["surface_points"], reference[(epoch, index)]["surface_points"], rtol=0, atol=0)
+            torch.testing.assert_close(item["radar"], reference[(epoch, index)]["radar"], rtol=0, atol=0)
+    assert turns[True] == {0} and len(turns[False]) > 3
+    assert "roll_turn" in next(iter(module.train_dataloader()))
+    with pytest.raises(UserInputError, match=r"roll_augment_skip_classes: unknown class\(es\) \['zeppelin'\]"):
+        _module(parts_dataset, roll_augment=True, roll_augment_skip_classes=["zeppelin"])
+
+
 def test_unturned_train_loader_gives_every_record_in_its_stored_heading(parts_dataset):
     """For per-record caches: in order, no ``roll_turn``, the plain items' points, even with roll_augment;
     and the augmented training loader is still augmented after it."""

@@ -420,9 +420,11 @@ def test_canonical_heading_trains_turned_radar_on_the_unturned_latents(stage1_ck
         tiny_model(stage1_ckpt, canonical_heading=True, cache_turned_latents=True)
 
 
-def test_place_in_heading_turns_the_mesh_into_the_observed_heading(stage1_ckpt):
+@pytest.mark.parametrize("options", [{"canonical_heading": True}, {"canonical_classes": ["jet"]}])
+def test_place_in_heading_turns_the_mesh_into_the_observed_heading(stage1_ckpt, options):
     """The observed radar is an L-shaped solid's PO response turned by (3 steps, mirrored): the
-    canonical mesh placed by the model is that solid turned the same way (vertex for vertex)."""
+    canonical mesh placed by the model is that solid turned the same way (vertex for vertex), also
+    where only some classes are learned canonical (the class is not known at test time)."""
     import trimesh
 
     from data_modules.augment import turn_and_mirror
@@ -432,7 +434,7 @@ def test_place_in_heading_turns_the_mesh_into_the_observed_heading(stage1_ckpt):
     long = trimesh.creation.box((0.8, 0.15, 0.1))
     foot = trimesh.creation.box((0.15, 0.35, 0.1), trimesh.transformations.translation_matrix((0.325, 0.25, 0.0)))
     mesh = trimesh.util.concatenate([long, foot])
-    model = tiny_model(stage1_ckpt, canonical_heading=True).eval()
+    model = tiny_model(stage1_ckpt, **options).eval()
     model.set_radar_spec(RadarStub(radar_batch(1), GRID).radar_spec)
     grid = model.radar_spec.grid
     response = simulate(mesh, grid.aspect_rad, grid.roll_rad, grid.freq_hz)  # size_m 1: the mesh as it is
@@ -523,3 +525,39 @@ def test_place_in_heading_on_a_quarter_turn_grid_tries_small_unmirrored_turns_on
     np.testing.assert_allclose(placed(7, False), mesh.vertices @ turn_rotation(8, 7, False).T, atol=1e-9)
     far = placed(3, True)
     assert any(np.allclose(far, mesh.vertices @ turn_rotation(8, s, False).T, atol=1e-9) for s in (7, 0, 1))
+
+
+def test_canonical_classes_train_those_classes_on_unturned_latents_and_the_rest_turned(stage1_ckpt, tmp_path):
+    """``canonical_classes``: a turned sample of a named class targets its record's unturned latent,
+    one of another class the latent of its turned points; the names map to the data's labels at fit
+    start (an unknown one is one error); it contradicts canonical_heading."""
+    model = tiny_model(stage1_ckpt, canonical_classes=["jet"]).train()
+    points = sphere_batch()["surface_points"] * torch.tensor([1.0, 0.6, 0.8])
+    unturned = torch.full_like(model.stage1.encode(points)[0][0], 0.5)
+    model._train_latents = {0: unturned, 1: -unturned}
+    model._canonical_labels = frozenset({2})
+    batch = {"index": torch.tensor([0, 1]), "label": torch.tensor([2, 5]), "roll_turn": torch.tensor([3, 9]),
+             "surface_points": points}
+    targets = model.encode_shapes(batch)
+    torch.testing.assert_close(targets[0], unturned)
+    torch.testing.assert_close(targets[1], model.stage1.encode(points)[0][1])
+    with pytest.raises(UserInputError, match="canonical_classes: a training record has no cached unturned latent"):
+        model.encode_shapes({**batch, "index": torch.tensor([7, 1])})
+
+    class NamedStub(TurnedRadarStub):
+        class_names = ["car", "jet"]
+
+        def labels_of(self, field, names):
+            unknown = [n for n in names if n not in self.class_names]
+            if unknown:
+                raise UserInputError(f"{field}: unknown class(es) {unknown}")
+            return [self.class_names.index(n) for n in names]
+
+    data = {**fit_batch(2), "label": torch.tensor([1, 0])}
+    fitted = tiny_model(stage1_ckpt, canonical_classes=["jet"])
+    fit(fitted, NamedStub(data, GRID, turns=[3, 9]), 1, tmp_path / "a")
+    assert fitted._canonical_labels == frozenset({1}) and sorted(fitted._train_latents) == [0, 1]
+    with pytest.raises(UserInputError, match=r"canonical_classes: unknown class\(es\) \['ship'\]"):
+        fit(tiny_model(stage1_ckpt, canonical_classes=["ship"]), NamedStub(data, GRID, turns=[3, 9]), 1, tmp_path / "b")
+    with pytest.raises(UserInputError, match="canonical_classes names the classes that are"):
+        tiny_model(stage1_ckpt, canonical_classes=["jet"], canonical_heading=True)

@@ -127,6 +127,12 @@ class RadarDiffusion(ReconstructionModel):
             quarter turns its file calls canonical; the heading search then looks for a turn of at
             most half a grid step, unmirrored. The latents of every grid pose of every training
             record are encoded once at fit start.
+        canonical_classes: ``canonical_heading`` for these classes only (names of the data's classes;
+            those whose files share a front, such as aircraft): their turned samples target the
+            unturned latent, every other class its turned one (with ``cache_turned_latents`` if set),
+            and :meth:`reconstruct` searches the heading of every reconstruction. For a Stage 1 that
+            draws those classes in their stored heading only (the DataModule's
+            ``roll_augment_skip_classes``) and the others turned.
         num_freq: number of radar frequencies F, cut into L contiguous blocks (equal when L divides F).
         dim, n_layers, n_heads, mlp_ratio, dropout: Transformer width D, depth, heads, MLP ratio.
         encoder_depth, encoder_width: ResNet depth (18/34/50/101/152) and width multiplier.
@@ -165,6 +171,7 @@ class RadarDiffusion(ReconstructionModel):
         canonical_heading: bool = False,
         refine_heading: bool = True,
         canonical_turn_step: int = 0,
+        canonical_classes: list[str] | None = None,
         init_weights: str | None = None,
         num_freq: int = 64,
         dim: int = 512,
@@ -208,6 +215,9 @@ class RadarDiffusion(ReconstructionModel):
         if canonical_turn_step and not canonical_heading:
             raise UserInputError("RadarDiffusion: canonical_turn_step is the grid of canonical_heading's targets: "
                                  "set canonical_heading=true or canonical_turn_step=0")
+        if canonical_classes and canonical_heading:
+            raise UserInputError("RadarDiffusion: canonical_heading learns every class in its canonical heading; "
+                                 "canonical_classes names the classes that are: set one of them")
         if canonical_turn_step and latent_cache:
             raise UserInputError("RadarDiffusion: canonical_turn_step encodes turned training shapes at fit start; "
                                  "a latent_cache holds unturned ones only: leave latent_cache unset")
@@ -243,6 +253,7 @@ class RadarDiffusion(ReconstructionModel):
         self.register_buffer("attn_mask", causal_mask(2 * self.n_levels), persistent=False)
         self._train_latents: dict[int, torch.Tensor] = {}
         self._turned_latents: dict[tuple[int, int], torch.Tensor] = {}  # (record, roll_turn) -> latents
+        self._canonical_labels: frozenset[int] = frozenset()  # canonical_classes' labels in the training data
         if fresh and init_weights:
             self.load_state_dict(load_checkpoint(init_weights, "a RadarDiffusion checkpoint", label="init_weights")["state_dict"])
 
@@ -289,6 +300,8 @@ class RadarDiffusion(ReconstructionModel):
         if self.training and index is not None:
             if "roll_turn" in batch and self.hparams.get("canonical_turn_step", 0):
                 return self._grid_pose_latents(index, batch["roll_turn"])
+            if "roll_turn" in batch and self.hparams.get("canonical_classes"):
+                return self._per_class_latents(batch, index)
             if "roll_turn" in batch and self.hparams.get("canonical_heading", False):
                 rows = [self._train_latents.get(int(i)) for i in index]
                 if any(r is None for r in rows):
@@ -312,6 +325,20 @@ class RadarDiffusion(ReconstructionModel):
             for i, mu in zip(new, self.stage1.encode(batch["surface_points"][new])[0]):
                 self._turned_latents[keys[i]] = mu.clone()
         return torch.stack([self._turned_latents[key] for key in keys]).to(self.device)
+
+    def _per_class_latents(self, batch: dict, index: torch.Tensor) -> torch.Tensor:
+        """The targets of ``canonical_classes``: unturned latents for those classes, turned ones otherwise."""
+        turned = self._cached_turned(batch, index, batch["roll_turn"]) if self.hparams.get("cache_turned_latents", False) \
+            else self.stage1.encode(batch["surface_points"])[0]
+        rows = []
+        for row, i, label in zip(turned, index.tolist(), batch["label"].tolist()):
+            if label in self._canonical_labels:
+                row = self._train_latents.get(int(i))
+                if row is None:
+                    raise UserInputError("canonical_classes: a training record has no cached unturned latent "
+                                         "(they are encoded at fit start from the DataModule)")
+            rows.append(row.to(self.device))
+        return torch.stack(rows)
 
     def _grid_pose_latents(self, index: torch.Tensor, turn: torch.Tensor) -> torch.Tensor:
         """The targets of ``canonical_turn_step``: each record's latents in the grid pose nearest its turn."""
@@ -367,10 +394,15 @@ class RadarDiffusion(ReconstructionModel):
         """Adopt the DataModule's radar spec; collect training latents and their statistics."""
         super().on_fit_start()
         datamodule = self.trainer.datamodule
+        if self.hparams.get("canonical_classes"):
+            if not hasattr(datamodule, "labels_of"):
+                raise UserInputError("canonical_classes needs a DataModule with named classes")
+            self._canonical_labels = frozenset(datamodule.labels_of("canonical_classes", self.hparams.canonical_classes))
         if self.hparams.latent_cache:
             self._train_latents = load_latent_cache(self.hparams.latent_cache)
         elif datamodule is not None:
-            canonical = self.hparams.get("canonical_heading", False) and hasattr(datamodule, "unturned_train_dataloader")
+            canonical = (self.hparams.get("canonical_heading", False) or bool(self.hparams.get("canonical_classes"))) \
+                and hasattr(datamodule, "unturned_train_dataloader")
             if canonical and self.hparams.get("canonical_turn_step", 0):
                 self._turned_latents = self.collect_grid_pose_latents(datamodule.unturned_train_dataloader())
                 self._train_latents = {i: mu for (i, turn), mu in self._turned_latents.items() if turn == 0}
@@ -492,10 +524,12 @@ class RadarDiffusion(ReconstructionModel):
         whole roll steps and the mirror, which only re-index that response, the one whose dB map
         correlates best with the observed cells wins, its shift refined between steps by the
         neighbouring correlations (:mod:`radar2shape.radar.heading`; ``scripts/heading_from_radar.py``
-        measures the search on real objects). With ``canonical_turn_step`` the mesh already lies in the
+        measures the search on real objects). With ``canonical_classes`` every mesh is searched, since
+        the class is not known at test time (one in its observed heading is found unturned). With ``canonical_turn_step`` the mesh already lies in the
         nearest grid pose: only unmirrored turns of at most half a grid step are tried.
         """
-        if not self.hparams.get("canonical_heading", False) or len(mesh.faces) == 0:
+        searched = self.hparams.get("canonical_heading", False) or bool(self.hparams.get("canonical_classes"))
+        if not searched or len(mesh.faces) == 0:
             return mesh
         from radar2shape.geometry.normalise import scaled
         from radar2shape.radar import simulate
