@@ -449,7 +449,10 @@ def test_place_in_heading_turns_the_mesh_into_the_observed_heading(stage1_ckpt, 
 
 
 class TurnedRadarStub(RadarStub):
-    """A stub whose training items are turned (``roll_turn``) and which also serves them unturned."""
+    """A stub whose training items are turned (``roll_turn``), which also serves them unturned and
+    names its classes."""
+
+    class_names = ["car", "jet"]
 
     def __init__(self, batch: dict, grid: dict, turns: list[int]):
         super().__init__(batch, grid)
@@ -460,71 +463,11 @@ class TurnedRadarStub(RadarStub):
     def unturned_train_dataloader(self):
         return torch.utils.data.DataLoader(self.plain, batch_size=len(self.plain))
 
-
-def test_canonical_turn_step_learns_each_record_in_its_nearest_quarter_turn(stage1_ckpt, tmp_path):
-    """``canonical_turn_step`` R/4 (2 of 8 roll steps): fit start encodes every record in its 8 grid
-    poses (a quarter turn maps (x, y, z) to (-y, x, z), the mirror to (x, -y, z)) and standardises
-    over all of them; a sample turned by (3, plain) trains on its record's (4, plain) latent, one
-    turned by (1, mirrored) on its (2, mirrored) one."""
-    points = sphere_batch()["surface_points"]
-    points = points * torch.tensor([1.0, 0.6, 0.8])  # an ellipsoid: its turns encode differently
-    batch = {**radar_batch(2), "surface_points": points}
-    model = tiny_model(stage1_ckpt, canonical_heading=True, canonical_turn_step=2)
-    fit(model, TurnedRadarStub(batch, GRID, turns=[3, 9]), 1, tmp_path)
-    assert sorted(model._turned_latents) == [(i, turn) for i in (0, 1) for turn in (0, 2, 4, 6, 8, 10, 12, 14)]
-    encode = model.stage1.encode
-    quarter = torch.stack([-points[..., 1], points[..., 0], points[..., 2]], dim=-1)
-    mirrored = points * torch.tensor([1.0, -1.0, 1.0])
-    quarter_of_mirrored = torch.stack([points[..., 1], points[..., 0], points[..., 2]], dim=-1)
-    for turn, turned in [(0, points), (2, quarter), (8, mirrored), (10, quarter_of_mirrored)]:
-        for i in (0, 1):
-            torch.testing.assert_close(model._turned_latents[i, turn], encode(turned)[0][i], atol=1e-5, rtol=1e-5)
-    assert (model._turned_latents[0, 2] - model._turned_latents[0, 0]).abs().max() > 1e-3
-    every = torch.stack(list(model._turned_latents.values()))
-    torch.testing.assert_close(model.standardiser.mean, every.mean(0))
-    model.train()
-    targets = model.encode_shapes({"index": torch.tensor([0, 1]), "roll_turn": torch.tensor([3, 9]),
-                                   "surface_points": points})
-    torch.testing.assert_close(targets, torch.stack([model._turned_latents[0, 4], model._turned_latents[1, 10]]))
-
-
-def test_canonical_turn_step_settings_that_contradict_are_refused(stage1_ckpt, tmp_path):
-    with pytest.raises(UserInputError, match="canonical_turn_step is the grid of canonical_heading"):
-        tiny_model(stage1_ckpt, canonical_turn_step=2)
-    with pytest.raises(UserInputError, match="a latent_cache holds unturned ones only"):
-        tiny_model(stage1_ckpt, canonical_heading=True, canonical_turn_step=2, latent_cache=str(tmp_path / "c.pt"))
-    model = tiny_model(stage1_ckpt, canonical_heading=True, canonical_turn_step=3)
-    with pytest.raises(UserInputError, match="canonical_turn_step: expected a divisor of the data's 8 roll steps, got 3"):
-        fit(model, TurnedRadarStub(fit_batch(2), GRID, turns=[1, 2]), 1, tmp_path)
-
-
-def test_place_in_heading_on_a_quarter_turn_grid_tries_small_unmirrored_turns_only(stage1_ckpt):
-    """With ``canonical_turn_step`` 2 of 8 the mesh already lies in the nearest quarter turn: an
-    observed turn of 1 step is found; one of (3, mirrored), outside the allowed turns, is not
-    reached: the mesh comes back turned by at most one step, unmirrored."""
-    import trimesh
-
-    from data_modules.augment import turn_and_mirror
-    from radar2shape.radar import simulate
-    from radar2shape.radar.heading import turn_rotation
-
-    long = trimesh.creation.box((0.8, 0.15, 0.1))
-    foot = trimesh.creation.box((0.15, 0.35, 0.1), trimesh.transformations.translation_matrix((0.325, 0.25, 0.0)))
-    mesh = trimesh.util.concatenate([long, foot])
-    model = tiny_model(stage1_ckpt, canonical_heading=True, canonical_turn_step=2, refine_heading=False).eval()
-    model.set_radar_spec(RadarStub(radar_batch(1), GRID).radar_spec)
-    grid = model.radar_spec.grid
-    response = model.radar_spec.to_db(simulate(mesh, grid.aspect_rad, grid.roll_rad, grid.freq_hz))
-
-    def placed(shift, mirror):
-        observed = turn_and_mirror({"radar": response}, shift, mirror, roll_rad=grid.roll_rad)["radar"]
-        batch = {"radar": torch.as_tensor(model.radar_spec.normalise(observed))[None],
-                 "radar_mask": torch.ones(1, 4, 8, dtype=torch.bool)}
-        return model.place_in_heading(mesh, batch, 0).vertices
-
-    np.testing.assert_allclose(placed(7, False), mesh.vertices @ turn_rotation(8, 7, False).T, atol=1e-9)
-    far = placed(3, True)
-    assert any(np.allclose(far, mesh.vertices @ turn_rotation(8, s, False).T, atol=1e-9) for s in (7, 0, 1))
+    def labels_of(self, field, names):
+        unknown = [name for name in names if name not in self.class_names]
+        if unknown:
+            raise UserInputError(f"{field}: unknown class(es) {unknown}")
+        return [self.class_names.index(name) for name in names]
 
 
 def test_canonical_classes_train_those_classes_on_unturned_latents_and_the_rest_turned(stage1_ckpt, tmp_path):
@@ -544,20 +487,11 @@ def test_canonical_classes_train_those_classes_on_unturned_latents_and_the_rest_
     with pytest.raises(UserInputError, match="canonical_classes: a training record has no cached unturned latent"):
         model.encode_shapes({**batch, "index": torch.tensor([7, 1])})
 
-    class NamedStub(TurnedRadarStub):
-        class_names = ["car", "jet"]
-
-        def labels_of(self, field, names):
-            unknown = [n for n in names if n not in self.class_names]
-            if unknown:
-                raise UserInputError(f"{field}: unknown class(es) {unknown}")
-            return [self.class_names.index(n) for n in names]
-
     data = {**fit_batch(2), "label": torch.tensor([1, 0])}
     fitted = tiny_model(stage1_ckpt, canonical_classes=["jet"])
-    fit(fitted, NamedStub(data, GRID, turns=[3, 9]), 1, tmp_path / "a")
+    fit(fitted, TurnedRadarStub(data, GRID, turns=[3, 9]), 1, tmp_path / "a")
     assert fitted._canonical_labels == frozenset({1}) and sorted(fitted._train_latents) == [0, 1]
     with pytest.raises(UserInputError, match=r"canonical_classes: unknown class\(es\) \['ship'\]"):
-        fit(tiny_model(stage1_ckpt, canonical_classes=["ship"]), NamedStub(data, GRID, turns=[3, 9]), 1, tmp_path / "b")
+        fit(tiny_model(stage1_ckpt, canonical_classes=["ship"]), TurnedRadarStub(data, GRID, turns=[3, 9]), 1, tmp_path / "b")
     with pytest.raises(UserInputError, match="canonical_classes names the classes that are"):
         tiny_model(stage1_ckpt, canonical_classes=["jet"], canonical_heading=True)

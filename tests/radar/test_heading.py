@@ -8,9 +8,8 @@ import trimesh
 
 from data_modules.augment import turn_and_mirror
 from radar2shape.radar import simulate
-from radar2shape.radar.heading import (band_averaged_db, candidate_turns, correlation, estimate_turn,
-                                       nearest_grid_turn, power_db, refined_shift, roll_order, small_turns,
-                                       turn_rotation)
+from radar2shape.radar.heading import (band_averaged_db, candidate_turns, correlation, estimate_turn, power_db,
+                                       refined_shift, roll_order, turn_rotation)
 
 ROLL = np.arange(8) * 2 * np.pi / 8
 
@@ -100,21 +99,3 @@ def test_a_turn_between_steps_is_found_to_the_nearest_step_and_refined():
         rounding.append(abs(turn[0] - true))
         refined.append(abs(refined_shift(scores, turn, count) - true))
     assert np.mean(refined) < 0.6 * np.mean(rounding)  # measured: 0.16 against 0.40 steps
-
-
-def test_nearest_grid_turn_and_small_turns_closed_forms():
-    # 32 roll steps, a quarter-turn grid of 8: shifts round to the nearest multiple (halfway up), mirror kept
-    grid = [nearest_grid_turn(code, 32, 8) for code in (0, 3, 4, 13, 28, 30, 32 + 5, 32 + 27, 32 + 29)]
-    assert grid == [0, 0, 8, 16, 0, 0, 40, 56, 32]
-    assert nearest_grid_turn(37, 32, 0) == 0  # no grid: the unturned pose
-    assert small_turns(8, 1) == [(0, False), (1, False), (7, False)]
-
-
-def test_the_best_allowed_turn_is_chosen_among_the_allowed_only(response):
-    observed = power_db(turn_and_mirror({"radar": response}, 3, True, roll_rad=ROLL)["radar"])
-    allowed = small_turns(8, 1)
-    found, scores = estimate_turn(observed, power_db(response), ROLL, allowed=allowed)
-    turns = candidate_turns(8)
-    assert found in allowed and found != (3, True)
-    assert scores[turns.index(found)] == max(scores[turns.index(t)] for t in allowed)
-    assert scores.max() == pytest.approx(1.0, abs=1e-6)  # the scores still cover every turn

@@ -120,13 +120,6 @@ class RadarDiffusion(ReconstructionModel):
             docs/radar_diffusion.md); :meth:`reconstruct` then finds the heading from the radar
             (:meth:`place_in_heading`) and turns the mesh into it. refine_heading: place it between
             roll steps where the neighbouring turns say so (else at the nearest whole step).
-        canonical_turn_step: with ``canonical_heading``, keep the sample's turn rounded to a multiple
-            of this many roll steps, and its mirror, in the target (0: the unturned latent). With R/4
-            and a Stage 1 trained on quarter turns (the DataModule's ``roll_augment_step``), every
-            target lies on the planes' axes, and the network need not guess which of an object's
-            quarter turns its file calls canonical; the heading search then looks for a turn of at
-            most half a grid step, unmirrored. The latents of every grid pose of every training
-            record are encoded once at fit start.
         canonical_classes: ``canonical_heading`` for these classes only (names of the data's classes;
             those whose files share a front, such as aircraft): their turned samples target the
             unturned latent, every other class its turned one (with ``cache_turned_latents`` if set),
@@ -170,7 +163,6 @@ class RadarDiffusion(ReconstructionModel):
         cache_turned_latents: bool = False,
         canonical_heading: bool = False,
         refine_heading: bool = True,
-        canonical_turn_step: int = 0,
         canonical_classes: list[str] | None = None,
         init_weights: str | None = None,
         num_freq: int = 64,
@@ -212,15 +204,9 @@ class RadarDiffusion(ReconstructionModel):
         if canonical_heading and cache_turned_latents:
             raise UserInputError("RadarDiffusion: canonical_heading learns unturned latents; cache_turned_latents "
                                  "(turned ones) contradicts it: set one of them")
-        if canonical_turn_step and not canonical_heading:
-            raise UserInputError("RadarDiffusion: canonical_turn_step is the grid of canonical_heading's targets: "
-                                 "set canonical_heading=true or canonical_turn_step=0")
         if canonical_classes and canonical_heading:
             raise UserInputError("RadarDiffusion: canonical_heading learns every class in its canonical heading; "
                                  "canonical_classes names the classes that are: set one of them")
-        if canonical_turn_step and latent_cache:
-            raise UserInputError("RadarDiffusion: canonical_turn_step encodes turned training shapes at fit start; "
-                                 "a latent_cache holds unturned ones only: leave latent_cache unset")
         if loss == "v" and not eps_skip:
             raise UserInputError("RadarDiffusion: loss='v' needs eps_skip=true (the network output is the velocity)")
         # A fresh contextvars.Context: the Lightning CLI hands its hyperparameters (a ContextVar) to
@@ -298,8 +284,6 @@ class RadarDiffusion(ReconstructionModel):
         """
         index = batch.get("index")
         if self.training and index is not None:
-            if "roll_turn" in batch and self.hparams.get("canonical_turn_step", 0):
-                return self._grid_pose_latents(index, batch["roll_turn"])
             if "roll_turn" in batch and self.hparams.get("canonical_classes"):
                 return self._per_class_latents(batch, index)
             if "roll_turn" in batch and self.hparams.get("canonical_heading", False):
@@ -340,37 +324,6 @@ class RadarDiffusion(ReconstructionModel):
             rows.append(row.to(self.device))
         return torch.stack(rows)
 
-    def _grid_pose_latents(self, index: torch.Tensor, turn: torch.Tensor) -> torch.Tensor:
-        """The targets of ``canonical_turn_step``: each record's latents in the grid pose nearest its turn."""
-        from radar2shape.radar.heading import nearest_grid_turn
-
-        count, step = len(self.radar_spec.grid.roll_rad), int(self.hparams.canonical_turn_step)
-        keys = [(int(i), nearest_grid_turn(int(t), count, step)) for i, t in zip(index, turn)]
-        if any(key not in self._turned_latents for key in keys):
-            raise UserInputError("canonical_turn_step: a training record has no latent in its grid pose "
-                                 "(they are encoded at fit start from the DataModule)")
-        return torch.stack([self._turned_latents[key] for key in keys]).to(self.device)
-
-    @torch.no_grad()
-    def collect_grid_pose_latents(self, loader) -> dict[tuple[int, int], torch.Tensor]:
-        """Posterior means of every training shape in every pose of the ``canonical_turn_step`` grid
-        (its quarter turns, each plain and mirrored), keyed by (record index, turn code)."""
-        from radar2shape.radar.heading import turn_rotation
-
-        count, step = len(self.radar_spec.grid.roll_rad), int(self.hparams.canonical_turn_step)
-        if count % step:
-            raise UserInputError(f"canonical_turn_step: expected a divisor of the data's {count} roll steps, got {step}")
-        poses = [(shift, mirror) for mirror in (False, True) for shift in range(0, count, step)]
-        latents = {}
-        for batch in loader:
-            points = batch["surface_points"].to(self.device)
-            for shift, mirror in poses:
-                rotation = torch.as_tensor(turn_rotation(count, shift, mirror), dtype=points.dtype, device=self.device)
-                mu, _ = self.stage1.encode(points @ rotation.T)
-                for i, m in zip(batch["index"].tolist(), mu.cpu()):
-                    latents[int(i), shift + count * int(mirror)] = m
-        return latents
-
     @torch.no_grad()
     def collect_train_latents(self, loader) -> dict[int, torch.Tensor]:
         """Posterior means of every training shape, keyed by record index (one pass over ``loader``)."""
@@ -403,17 +356,12 @@ class RadarDiffusion(ReconstructionModel):
         elif datamodule is not None:
             canonical = (self.hparams.get("canonical_heading", False) or bool(self.hparams.get("canonical_classes"))) \
                 and hasattr(datamodule, "unturned_train_dataloader")
-            if canonical and self.hparams.get("canonical_turn_step", 0):
-                self._turned_latents = self.collect_grid_pose_latents(datamodule.unturned_train_dataloader())
-                self._train_latents = {i: mu for (i, turn), mu in self._turned_latents.items() if turn == 0}
-            else:
-                self._train_latents = self.collect_train_latents(
-                    datamodule.unturned_train_dataloader() if canonical else datamodule.train_dataloader())
+            self._train_latents = self.collect_train_latents(
+                datamodule.unturned_train_dataloader() if canonical else datamodule.train_dataloader())
         if not bool(self.standardiser.ready):
             if not self._train_latents:
                 raise UserInputError("no training latents to standardise: give a DataModule or latent_cache")
-            targets = self._turned_latents if self.hparams.get("canonical_turn_step", 0) else self._train_latents
-            self.standardiser.fit(torch.stack(list(targets.values())).to(self.device))
+            self.standardiser.fit(torch.stack(list(self._train_latents.values())).to(self.device))
 
     # ---- training ----------------------------------------------------------------------------
     def diffusion_loss(self, batch: dict, generator: torch.Generator | None = None) -> torch.Tensor:
@@ -525,23 +473,21 @@ class RadarDiffusion(ReconstructionModel):
         correlates best with the observed cells wins, its shift refined between steps by the
         neighbouring correlations (:mod:`radar2shape.radar.heading`; ``scripts/heading_from_radar.py``
         measures the search on real objects). With ``canonical_classes`` every mesh is searched, since
-        the class is not known at test time (one in its observed heading is found unturned). With ``canonical_turn_step`` the mesh already lies in the
-        nearest grid pose: only unmirrored turns of at most half a grid step are tried.
+        the class is not known at test time (one in its observed heading is found unturned).
         """
         searched = self.hparams.get("canonical_heading", False) or bool(self.hparams.get("canonical_classes"))
         if not searched or len(mesh.faces) == 0:
             return mesh
         from radar2shape.geometry.normalise import scaled
         from radar2shape.radar import simulate
-        from radar2shape.radar.heading import estimate_turn, refined_shift, small_turns, turn_rotation
+        from radar2shape.radar.heading import estimate_turn, refined_shift, turn_rotation
 
         grid = self.radar_spec.grid
         observed = self.radar_spec.denormalise(batch["radar"][i].detach().cpu().numpy())
         mask = batch["radar_mask"][i].detach().cpu().numpy().astype(bool)
         simulated = self.radar_spec.to_db(simulate(scaled(mesh, grid.size_m), grid.aspect_rad, grid.roll_rad, grid.freq_hz))
-        count, step = len(grid.roll_rad), int(self.hparams.get("canonical_turn_step", 0))
-        allowed = small_turns(count, step / 2) if step else None
-        turn, scores = estimate_turn(observed, simulated, grid.roll_rad, mask=mask, allowed=allowed)
+        turn, scores = estimate_turn(observed, simulated, grid.roll_rad, mask=mask)
+        count = len(grid.roll_rad)
         shift = refined_shift(scores, turn, count) if self.hparams.get("refine_heading", True) else turn[0]
         rotation = turn_rotation(count, shift, turn[1])
         placed = mesh.copy()

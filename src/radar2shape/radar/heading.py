@@ -56,24 +56,6 @@ def candidate_turns(count: int) -> list[tuple[int, bool]]:
     return [(shift, mirror) for mirror in (False, True) for shift in range(count)]
 
 
-def nearest_grid_turn(turn_code: int, count: int, step: int) -> int:
-    """The turn code (``shift + count * mirror``) with the same mirror and the shift that is the multiple
-    of ``step`` nearest to ``turn_code``'s (halfway: the next one up); ``step`` 0: the unturned pose.
-
-    A model that learns shapes in a few poses (the quarter turns, ``step = count / 4``) takes the pose
-    of this turn as the target of a sample turned by ``turn_code``: the rest is a turn of at most half
-    a grid step, which :func:`estimate_turn` finds from the radar."""
-    if step == 0:
-        return 0
-    shift, mirror = turn_code % count, turn_code // count
-    return (step * math.floor(shift / step + 0.5)) % count + count * mirror
-
-
-def small_turns(count: int, max_shift: float) -> list[tuple[int, bool]]:
-    """The unmirrored turns of at most ``max_shift`` steps either way."""
-    return [(shift, False) for shift in range(count) if min(shift, count - shift) <= max_shift]
-
-
 def power_db(response: np.ndarray) -> np.ndarray:
     """``10 log10 |E|^2`` of a complex response, floored ``FLOOR_BELOW_PEAK_DB`` below its peak."""
     db = 10.0 * np.log10(np.maximum(np.abs(response) ** 2, 1e-300))
@@ -98,14 +80,12 @@ def correlation(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def estimate_turn(observed_db: np.ndarray, candidate_db: np.ndarray, roll_rad, mask: np.ndarray | None = None,
-                  band_average: bool = False, allowed: list[tuple[int, bool]] | None = None
-                  ) -> tuple[tuple[int, bool], np.ndarray]:
+                  band_average: bool = False) -> tuple[tuple[int, bool], np.ndarray]:
     """The turn of ``candidate_db`` ``[A, R, F]`` whose dB map correlates best with ``observed_db``.
 
     ``mask`` ``[A, R]`` (bool): compare observed cells only. Correlation, not a residual, so a level
-    offset (size, calibration, a normalisation) does not matter. ``allowed``: the best of these turns
-    only (default all). Returns the best turn and the correlation of every turn in
-    :func:`candidate_turns` order.
+    offset (size, calibration, a normalisation) does not matter. Returns the best turn and the
+    correlation of every turn in :func:`candidate_turns` order.
     """
     if band_average:
         observed_db, candidate_db = band_averaged_db(observed_db), band_averaged_db(candidate_db)
@@ -113,8 +93,7 @@ def estimate_turn(observed_db: np.ndarray, candidate_db: np.ndarray, roll_rad, m
     turns = candidate_turns(roll_steps(roll_rad))
     target = observed_db[keep]
     scores = np.array([correlation(target, candidate_db[:, roll_order(roll_rad, s, m)][keep]) for s, m in turns])
-    choices = [turns.index(turn) for turn in allowed] if allowed is not None else list(range(len(turns)))
-    return turns[max(choices, key=lambda i: scores[i])], scores
+    return turns[int(np.argmax(scores))], scores
 
 
 def refined_shift(scores: np.ndarray, turn: tuple[int, bool], count: int) -> float:

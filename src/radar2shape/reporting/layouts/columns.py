@@ -45,7 +45,6 @@ MODEL_TITLES = {
     "radar2shape_s1long": "Radar2Shape, Stage 1 for 200 epochs, Stage 2 for 4,160 steps",
     "radar2shape_s1long_steps12k": "Radar2Shape, Stage 1 for 200 epochs, Stage 2 for 11,960 steps",
     "radar2shape_heading": "Radar2Shape, shapes learned in their canonical heading, heading by PO search",
-    "radar2shape_quarter": "Radar2Shape, shapes learned in their nearest quarter turn, heading by PO search",
     "radar2shape_front": "Radar2Shape, aircraft and ships learned in their stored heading, heading by PO search",
     "radar2shape_heading_oracle": "Radar2Shape, shapes learned in their canonical heading, true heading given (oracle)",
     "diffusion_sdf": "Diffusion-SDF",
