@@ -23,9 +23,11 @@ for obs in full partial; do
   pairs+=(--pair "front classes canonical - every class canonical, $obs" $S/radar2shape_front-$obs-seed0.csv $H/radar2shape_heading-$obs-seed0.csv)
   pairs+=(--pair "front classes canonical - nearest neighbour, $obs" $S/radar2shape_front-$obs-seed0.csv $L/nearest-$obs.csv)
 done
+pairs+=(--pair "heading by PO search - true heading given (oracle), full" $S/radar2shape_front-full-seed0.csv $S/radar2shape_front_oracle-full-seed0.csv)
 "$PY" scripts/paired_scores.py --out $R/paired.md "${pairs[@]}"
 "$PY" scripts/per_class_scores.py --data data/real --out $R/per_class.md \
   --run "Radar2Shape, front classes canonical" $S/radar2shape_front-full-seed0.csv \
+  --run "the same, true heading given" $S/radar2shape_front_oracle-full-seed0.csv \
   --run "Radar2Shape, every class canonical" $H/radar2shape_heading-full-seed0.csv \
   --run "Radar2Shape (shipped real model)" $L/radar2shape_circ_steps12k-full-seed0.csv \
   --run "Nearest neighbour" $L/nearest-full.csv \

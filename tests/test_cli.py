@@ -50,6 +50,15 @@ def test_fit_then_test_writes_config_and_checkpoint(tmp_path, capsys):
     metrics = (root / "version_1" / "metrics.csv").read_text()
     assert "test/radius_l1" in metrics
 
+    # the command line's model settings stand for a test; the checkpoint's saved ones do not replace them
+    state["hyper_parameters"]["lr"] = 0.123
+    edited = tmp_path / "edited.ckpt"
+    torch.save(state, edited)
+    code = cli.main(["test", "--config", TOY, f"--trainer.default_root_dir={root}", f"--ckpt_path={edited}",
+                     "--trainer.enable_progress_bar=false"])
+    assert code == 0
+    assert yaml.safe_load((root / "version_2" / "config.yaml").read_text())["model"]["init_args"]["lr"] == 0.003
+
 
 def test_fast_dev_run_smoke(tmp_path):
     code = cli.main(["fit", "--config", TOY, "--trainer.fast_dev_run=true", f"--trainer.default_root_dir={tmp_path}"])

@@ -134,6 +134,11 @@ class Radar2ShapeCLI(LightningCLI):
 
             load_checkpoint(ckpt_path, "a Lightning checkpoint", label="--ckpt_path")
 
+    def _parse_ckpt_path(self) -> None:
+        """Keep the command line's model settings: Lightning would merge the checkpoint's saved
+        hyperparameters over them, so a setting given for a test (the heading search, samples,
+        guidance) would be silently replaced. The weights still come from ``--ckpt_path``."""
+
     def _set_seed(self) -> None:
         """Seed quietly: "Seed set to N" is logged once the classes are built (see
         :meth:`after_instantiate_classes`), so a refused run prints only its error line."""
