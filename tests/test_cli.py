@@ -50,14 +50,17 @@ def test_fit_then_test_writes_config_and_checkpoint(tmp_path, capsys):
     metrics = (root / "version_1" / "metrics.csv").read_text()
     assert "test/radius_l1" in metrics
 
-    # the command line's model settings stand for a test; the checkpoint's saved ones do not replace them
+    # a test takes the checkpoint's saved settings over the config files' (so it needs no architecture
+    # settings), but a setting given on the command line stands over the checkpoint's
     state["hyper_parameters"]["lr"] = 0.123
     edited = tmp_path / "edited.ckpt"
     torch.save(state, edited)
-    code = cli.main(["test", "--config", TOY, f"--trainer.default_root_dir={root}", f"--ckpt_path={edited}",
-                     "--trainer.enable_progress_bar=false"])
-    assert code == 0
-    assert yaml.safe_load((root / "version_2" / "config.yaml").read_text())["model"]["init_args"]["lr"] == 0.003
+    for version, given, expected in [(2, [], 0.123), (3, ["--model.init_args.lr=0.5"], 0.5), (4, ["--model.init_args.lr", "0.25"], 0.25)]:
+        code = cli.main(["test", "--config", TOY, f"--trainer.default_root_dir={root}", f"--ckpt_path={edited}",
+                         "--trainer.enable_progress_bar=false", *given])
+        assert code == 0
+        saved = yaml.safe_load((root / f"version_{version}" / "config.yaml").read_text())
+        assert saved["model"]["init_args"]["lr"] == expected, given
 
 
 def test_fast_dev_run_smoke(tmp_path):

@@ -119,6 +119,12 @@ class PreemptionCheckpoint(Callback):
         PreemptionCheckpoint.saved = path
 
 
+def model_setting_keys(argv: list[str]) -> list[str]:
+    """The KEYs of the ``--model.init_args.KEY VALUE`` (or ``=VALUE``) settings of a command line."""
+    prefix = "--model.init_args."
+    return [arg[len(prefix):].partition("=")[0] for arg in argv if isinstance(arg, str) and arg.startswith(prefix)]
+
+
 class Radar2ShapeCLI(LightningCLI):
     """LightningCLI whose loggers default to :func:`default_loggers` under the run's root dir, and
     which refuses a bad ``--ckpt_path`` or data folder before anything is written."""
@@ -126,6 +132,7 @@ class Radar2ShapeCLI(LightningCLI):
     def parse_arguments(self, parser, args) -> None:
         """Parse, then load ``--ckpt_path`` through the one checkpoint loader (Lightning would
         unpickle it next and fail with a traceback on a text file or an arbitrary pickle)."""
+        self._command_line = list(sys.argv[1:] if args is None else args) if not isinstance(args, dict) else []
         super().parse_arguments(parser, args)
         subcommand = self.config.get("subcommand")
         ckpt_path = self.config[subcommand].get("ckpt_path") if subcommand else None
@@ -135,9 +142,27 @@ class Radar2ShapeCLI(LightningCLI):
             load_checkpoint(ckpt_path, "a Lightning checkpoint", label="--ckpt_path")
 
     def _parse_ckpt_path(self) -> None:
-        """Keep the command line's model settings: Lightning would merge the checkpoint's saved
-        hyperparameters over them, so a setting given for a test (the heading search, samples,
-        guidance) would be silently replaced. The weights still come from ``--ckpt_path``."""
+        """Lightning merges the checkpoint's saved hyperparameters over the parsed config (so a test
+        needs no architecture settings); the ``--model.init_args.*`` given on the command line are
+        put back over them, so a setting given for a test (the heading search, samples, guidance)
+        is what it runs with, not the one the checkpoint saved."""
+        subcommand = self.config.get("subcommand")
+        if not subcommand or not self.config[subcommand].get("ckpt_path") or self.config[subcommand].get("model") is None:
+            super()._parse_ckpt_path()
+            return
+        parsed = self.config[subcommand]["model"]["init_args"]
+        given = {key: parsed[key] for key in model_setting_keys(self._command_line) if key in parsed}
+        super()._parse_ckpt_path()
+        if given:
+            init_args: dict = {}
+            for key, value in given.items():
+                *parents, leaf = key.split(".")
+                level = init_args
+                for parent in parents:
+                    level = level.setdefault(parent, {})
+                level[leaf] = value
+            model = {"class_path": self.config[subcommand]["model"]["class_path"], "init_args": init_args}
+            self.config = self.parser.parse_object({subcommand: {"model": model}}, self.config)
 
     def _set_seed(self) -> None:
         """Seed quietly: "Seed set to N" is logged once the classes are built (see
