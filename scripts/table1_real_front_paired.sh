@@ -32,3 +32,15 @@ pairs+=(--pair "heading by PO search - true heading given (oracle), full" $S/rad
   --run "Radar2Shape (shipped real model)" $L/radar2shape_circ_steps12k-full-seed0.csv \
   --run "Nearest neighbour" $L/nearest-full.csv \
   --run "Stage 1, every class canonical" $CANONICAL
+# the seed-1 rerun of its Stage 1 (radar2shape_front_stage1_seed1), paired and per class
+"$PY" scripts/stage1_fit_gap.py --run runs/table1-real-front/radar2shape_front_stage1_seed1 --train-shapes 60 \
+  --out $R/fit_gap_seed1.md --scores $R/ceiling_scores_seed1.csv
+"$PY" scripts/paired_scores.py --metrics ceiling_iou ceiling_fscore_1pct ceiling_chamfer_l2_x1e3 --out $R/paired_ceiling_seed1.md \
+  --pair "front classes canonical seed 1 - shipped Stage 1" $R/ceiling_scores_seed1.csv $L/radar2shape_circ_steps12k-full-seed0.csv \
+  --pair "front classes canonical seed 1 - canonical heading only" $R/ceiling_scores_seed1.csv $CANONICAL \
+  --pair "front classes canonical seed 1 - seed 0" $R/ceiling_scores_seed1.csv $R/ceiling_scores.csv
+"$PY" scripts/per_class_scores.py --data data/real --out $R/per_class_ceiling.md \
+  --run "shipped Stage 1" $L/radar2shape_circ_steps12k-full-seed0.csv \
+  --run "canonical heading only" $CANONICAL \
+  --run "front classes canonical, seed 0" $R/ceiling_scores.csv \
+  --run "front classes canonical, seed 1" $R/ceiling_scores_seed1.csv

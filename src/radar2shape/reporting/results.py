@@ -145,6 +145,7 @@ STAGE1_CHECKS = (  # (what changed, its fit-gap report), each against the 60-epo
      Path("reports/table1-real-quarter/fit_gap.md")),
     ("aircraft and ships in their canonical heading only, the other classes turned",
      Path("reports/table1-real-front/fit_gap.md")),
+    ("the same, seed 1", Path("reports/table1-real-front/fit_gap_seed1.md")),
 )
 
 
