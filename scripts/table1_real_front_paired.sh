@@ -12,8 +12,10 @@ L=reports/table1-real-long/scores
 H=reports/table1-real-heading/scores
 CANONICAL=reports/table1-real-stage1-noaug/ceiling_scores.csv
 PY=${PY:-.venv/bin/python}
-"$PY" scripts/stage1_fit_gap.py --run runs/table1-real-front/radar2shape_front_stage1 --train-shapes 60 \
-  --out $R/fit_gap.md --scores $R/ceiling_scores.csv
+for seed in "" _seed1; do  # the Stage 1 the rows use, and its seed-1 rerun
+  "$PY" scripts/stage1_fit_gap.py --run runs/table1-real-front/radar2shape_front_stage1$seed --train-shapes 60 \
+    --out $R/fit_gap$seed.md --scores $R/ceiling_scores$seed.csv
+done
 pairs=(--pair "front classes canonical - shipped real model, Stage 1" $R/ceiling_scores.csv $L/radar2shape_circ_steps12k-full-seed0.csv
        --pair "front classes canonical - every class canonical, Stage 1" $R/ceiling_scores.csv $CANONICAL)
 "$PY" scripts/paired_scores.py --metrics ceiling_iou ceiling_fscore_1pct ceiling_chamfer_l2_x1e3 --out $R/paired_ceiling.md "${pairs[@]}"
@@ -33,8 +35,6 @@ pairs+=(--pair "heading by PO search - true heading given (oracle), full" $S/rad
   --run "Nearest neighbour" $L/nearest-full.csv \
   --run "Stage 1, every class canonical" $CANONICAL
 # the seed-1 rerun of its Stage 1 (radar2shape_front_stage1_seed1), paired and per class
-"$PY" scripts/stage1_fit_gap.py --run runs/table1-real-front/radar2shape_front_stage1_seed1 --train-shapes 60 \
-  --out $R/fit_gap_seed1.md --scores $R/ceiling_scores_seed1.csv
 "$PY" scripts/paired_scores.py --metrics ceiling_iou ceiling_fscore_1pct ceiling_chamfer_l2_x1e3 --out $R/paired_ceiling_seed1.md \
   --pair "front classes canonical seed 1 - shipped Stage 1" $R/ceiling_scores_seed1.csv $L/radar2shape_circ_steps12k-full-seed0.csv \
   --pair "front classes canonical seed 1 - canonical heading only" $R/ceiling_scores_seed1.csv $CANONICAL \

@@ -311,18 +311,21 @@ class RadarDiffusion(ReconstructionModel):
         return torch.stack([self._turned_latents[key] for key in keys]).to(self.device)
 
     def _per_class_latents(self, batch: dict, index: torch.Tensor) -> torch.Tensor:
-        """The targets of ``canonical_classes``: unturned latents for those classes, turned ones otherwise."""
-        turned = self._cached_turned(batch, index, batch["roll_turn"]) if self.hparams.get("cache_turned_latents", False) \
-            else self.stage1.encode(batch["surface_points"])[0]
-        rows = []
-        for row, i, label in zip(turned, index.tolist(), batch["label"].tolist()):
-            if label in self._canonical_labels:
-                row = self._train_latents.get(int(i))
-                if row is None:
-                    raise UserInputError("canonical_classes: a training record has no cached unturned latent "
-                                         "(they are encoded at fit start from the DataModule)")
-            rows.append(row.to(self.device))
-        return torch.stack(rows)
+        """The targets of ``canonical_classes``: unturned latents for those classes, turned ones otherwise
+        (Stage 1 encodes only the rows of other classes)."""
+        canonical = [int(label) in self._canonical_labels for label in batch["label"].tolist()]
+        rows: list[torch.Tensor | None] = [self._train_latents.get(int(i)) if c else None for i, c in zip(index, canonical)]
+        if any(c and row is None for c, row in zip(canonical, rows)):
+            raise UserInputError("canonical_classes: a training record has no cached unturned latent "
+                                 "(they are encoded at fit start from the DataModule)")
+        turned = [k for k, c in enumerate(canonical) if not c]
+        if turned:
+            part = {key: batch[key][turned] for key in ("surface_points", "roll_turn")}
+            latents = self._cached_turned(part, index[turned], part["roll_turn"]) \
+                if self.hparams.get("cache_turned_latents", False) else self.stage1.encode(part["surface_points"])[0]
+            for k, latent in zip(turned, latents):
+                rows[k] = latent
+        return torch.stack([row.to(self.device) for row in rows])
 
     @torch.no_grad()
     def collect_train_latents(self, loader) -> dict[int, torch.Tensor]:
