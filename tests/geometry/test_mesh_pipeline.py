@@ -97,3 +97,24 @@ def test_prepare_normalises_and_respects_limits():
     assert (hi - lo).max() == pytest.approx(1.0)
     with pytest.raises(MeshError, match="max_input_faces"):
         prepare_mesh(sphere, MeshConfig(max_input_faces=100))
+
+
+def test_turned_in_frame_is_the_turned_object_normalised_in_its_new_heading():
+    """A 1 x 0.2 x 0.1 box turned 45 degrees has a bounding box (1 + 0.2) / sqrt 2 wide: normalised
+    in that heading it is smaller by sqrt 2 / 1.2, which is what the placement returns; a mirror keeps
+    it outward, and no turn changes nothing."""
+    from radar2shape.geometry.normalise import normalise, turned_in_frame
+
+    box = trimesh.creation.box((1.0, 0.2, 0.1))
+    c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
+    quarter_eighth = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    placed = turned_in_frame(box, quarter_eighth)
+    lo, hi = placed.bounds
+    np.testing.assert_allclose(hi - lo, [1.0, 1.0, 0.1 * np.sqrt(2) / 1.2], atol=1e-12)
+    assert placed.volume == pytest.approx(0.02 * (np.sqrt(2) / 1.2) ** 3, rel=1e-9)
+    turned = box.copy().apply_transform(trimesh.transformations.rotation_matrix(np.pi / 4, (0, 0, 1)))
+    np.testing.assert_allclose(placed.vertices, normalise(turned)[0].vertices, atol=1e-12)
+    mirrored = turned_in_frame(box, np.diag([1.0, -1.0, 1.0]) @ quarter_eighth)
+    assert mirrored.volume > 0 and mirrored.is_winding_consistent
+    shifted = box.copy().apply_translation((0.1, 0.0, 0.0))  # off centre: stays where it was
+    np.testing.assert_allclose(turned_in_frame(shifted, np.eye(3)).vertices, shifted.vertices, atol=1e-15)

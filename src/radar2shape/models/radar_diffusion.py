@@ -476,12 +476,14 @@ class RadarDiffusion(ReconstructionModel):
         correlates best with the observed cells wins, its shift refined between steps by the
         neighbouring correlations (:mod:`radar2shape.radar.heading`; ``scripts/heading_from_radar.py``
         measures the search on real objects). With ``canonical_classes`` every mesh is searched, since
-        the class is not known at test time (one in its observed heading is found unturned).
+        the class is not known at test time (one in its observed heading is found unturned). The
+        turned mesh is put back in the normalised frame of the observed heading
+        (:func:`radar2shape.geometry.normalise.turned_in_frame`).
         """
         searched = self.hparams.get("canonical_heading", False) or bool(self.hparams.get("canonical_classes"))
         if not searched or len(mesh.faces) == 0:
             return mesh
-        from radar2shape.geometry.normalise import scaled
+        from radar2shape.geometry.normalise import scaled, turned_in_frame
         from radar2shape.radar import simulate
         from radar2shape.radar.heading import estimate_turn, refined_shift, turn_rotation
 
@@ -492,10 +494,7 @@ class RadarDiffusion(ReconstructionModel):
         turn, scores = estimate_turn(observed, simulated, grid.roll_rad, mask=mask)
         count = len(grid.roll_rad)
         shift = refined_shift(scores, turn, count) if self.hparams.get("refine_heading", True) else turn[0]
-        rotation = turn_rotation(count, shift, turn[1])
-        placed = mesh.copy()
-        placed.apply_transform(np.block([[rotation, np.zeros((3, 1))], [np.zeros((1, 3)), np.ones((1, 1))]]))
-        return placed
+        return turned_in_frame(mesh, turn_rotation(count, shift, turn[1]))
 
     @torch.no_grad()
     def reconstruct_ceiling(self, batch: dict) -> list[Reconstruction] | None:
