@@ -21,3 +21,15 @@ def test_turned_mesh_is_rotated_about_z_then_normalised():
     np.testing.assert_allclose(quarter.bounds.mean(axis=0), 0.0, atol=1e-9)
     diagonal = yaw_check.turned(box, 45.0)  # footprint (3/sqrt 2) square, scaled so that its side is 1
     np.testing.assert_allclose(np.ptp(diagonal.vertices, axis=0), [1.0, 1.0, 0.5 * np.sqrt(2) / 3], atol=1e-9)
+
+
+def test_frame_cost_of_a_box_turned_45_degrees_is_its_volume_ratio():
+    """A 1 x 0.2 x 0.1 box turned 45 degrees is 1.2 / sqrt 2 wide: normalised in that heading it is
+    sqrt 2 / 1.2 times larger and holds the unscaled one (same centre), so IoU = (1.2 / sqrt 2)^3."""
+    spec = importlib.util.spec_from_file_location("frame_after_turn", REPO / "scripts" / "frame_after_turn.py")
+    frame_after_turn = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(frame_after_turn)
+    ratio, iou = frame_after_turn.frame_cost(trimesh.creation.box(extents=(1.0, 0.2, 0.1)), 45.0)
+    assert abs(ratio - np.sqrt(2) / 1.2) < 1e-9
+    assert abs(iou - (1.2 / np.sqrt(2)) ** 3) < 0.02  # occupancy-sampled
+    assert frame_after_turn.frame_cost(trimesh.creation.box(extents=(1.0, 0.2, 0.1)), 0.0) == (1.0, 1.0)
