@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
 
 def parse_args(argv):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -59,22 +61,15 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     import trimesh
 
-    from data_modules.datamodules import ShapeDataModule
     from radar2shape.atomic import write_text_atomic
+    from yaw_check import records_of
 
-    dm = ShapeDataModule(root=str(args.data))
-    records = dm.records("test")
-    labels = dm.manifest["labels"]["test"]
-    wanted = {dm.class_names.index(c) for c in args.classes if c in dm.class_names}
-    picked = [i for i, label in enumerate(labels) if label in wanted]
-    if not picked:
-        print(f"error: --classes: no test record of {args.classes} in {args.data}", file=sys.stderr)
-        return 2
+    records, picked = records_of(args.data, args.classes)
     start = time.perf_counter()
     rows = []
-    for i in picked:
+    for i, name in picked:
         mesh = trimesh.Trimesh(records[i]["vertices"], records[i]["faces"], process=False)
-        rows.append((records.record_ids[i], dm.class_names[labels[i]], [frame_cost(mesh, yaw) for yaw in args.yaw_deg]))
+        rows.append((records.record_ids[i], name, [frame_cost(mesh, yaw) for yaw in args.yaw_deg]))
     header = " | ".join(f"size ratio at {y:g} deg | IoU left unscaled at {y:g} deg" for y in args.yaw_deg)
     lines = [f"# The frame after a turn: `{args.data}`", "",
              f"Test objects of {', '.join(args.classes)}, each turned about z: the size of the object normalised "

@@ -70,11 +70,31 @@ def score_turn(model, record, yaw_deg: float) -> dict[str, float]:
     return score_reconstruction(recon, gt_points, occ, contains(mesh, occ), 30_000)
 
 
+def records_of(data: Path, classes: list[str], split: str = "test"):
+    """``(records, [(index, class name), ...])`` of the ``split`` records of ``classes`` in ``data``
+    (the turned-object scripts share it); no such record is one error line, exit status 2."""
+    from data_modules.datamodules import ShapeDataModule
+
+    dm = ShapeDataModule(root=str(data))
+    records, labels = dm.records(split), dm.manifest["labels"][split]
+    wanted = {dm.class_names.index(c) for c in classes if c in dm.class_names}
+    picked = [(i, dm.class_names[label]) for i, label in enumerate(labels) if label in wanted]
+    if not picked:
+        print(f"error: --classes: no {split} record of {classes} in {data}", file=sys.stderr)
+        raise SystemExit(2)
+    return records, picked
+
+
+def paired(diff: np.ndarray) -> str:
+    """``mean ± standard error`` of paired differences."""
+    se = diff.std(ddof=1) / math.sqrt(len(diff)) if len(diff) > 1 else float("nan")
+    return f"{diff.mean():+.3f} ± {se:.3f}"
+
+
 def main(argv=None) -> int:
     args = parse_args(argv)
     import torch
 
-    from data_modules.datamodules import ShapeDataModule
     from radar2shape.atomic import write_text_atomic
     from radar2shape.pretrained import load_model
 
@@ -82,21 +102,14 @@ def main(argv=None) -> int:
     model = load_model(args.ckpt)
     if args.whole_steps:
         model.hparams.refine_heading = False
-    dm = ShapeDataModule(root=str(args.data))
-    records = dm.records("test")
-    labels = dm.manifest["labels"]["test"]
-    wanted = {dm.class_names.index(c) for c in args.classes if c in dm.class_names}
-    picked = [i for i, label in enumerate(labels) if label in wanted]
-    if not picked:
-        print(f"error: --classes: no test record of {args.classes} in {args.data}", file=sys.stderr)
-        return 2
+    records, picked = records_of(args.data, args.classes)
     yaws = [0.0, *args.yaw_deg]
     start = time.perf_counter()
     rows = []
-    for i in picked:
+    for i, name in picked:
         record = records[i]
         scores = [score_turn(model, record, yaw) for yaw in yaws]
-        rows.append((records.record_ids[i], dm.class_names[labels[i]], scores))
+        rows.append((records.record_ids[i], name, scores))
         print(f"{records.record_ids[i]}: " + ", ".join(f"yaw {y:g}: IoU {s['iou']:.3f}" for y, s in zip(yaws, scores)))
     lines = [f"# Turned objects: {args.ckpt}", "",
              f"Test objects of {', '.join(args.classes)} in `{args.data}`, turned about z, simulated (PO) on the "
@@ -108,9 +121,7 @@ def main(argv=None) -> int:
     iou = np.array([[s["iou"] for s in scores] for _, _, scores in rows])
     lines += ["| mean | | " + " | ".join(f"{m:.3f}" for m in iou.mean(axis=0)) + " |", ""]
     for k, yaw in enumerate(yaws[1:], start=1):
-        diff = iou[:, k] - iou[:, 0]
-        se = diff.std(ddof=1) / math.sqrt(len(diff)) if len(diff) > 1 else float("nan")
-        lines.append(f"Yaw {yaw:g} deg minus unturned, paired over {len(diff)} objects: IoU {diff.mean():+.3f} ± {se:.3f}.")
+        lines.append(f"Yaw {yaw:g} deg minus unturned, paired over {len(iou)} objects: IoU {paired(iou[:, k] - iou[:, 0])}.")
     write_text_atomic(args.out, "\n".join(lines) + "\n")
     print(f"wrote {args.out}")
     return 0

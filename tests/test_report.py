@@ -408,6 +408,26 @@ def test_lost_run_folders_are_scored_from_the_scores_the_report_kept(tmp_path, c
     assert "holds no per-shape scores" in capsys.readouterr().err
 
 
+def test_a_fit_without_a_test_keeps_its_record_once_its_folder_is_gone(grid, tmp_path):
+    """A Stage-1 fit has no scores to keep, but the report keeps its record: with its folder gone its
+    fit time (30 s) still stands in the runs table and the total, and the record survives a further
+    report; a fit the report never saw stays missing."""
+    out = tmp_path / "report"
+    assert cli.main(["report", "--grid", str(grid), "--out", str(out)]) == 0
+    assert json.loads((out / "scores" / "radar2shape_stage1.json").read_text())["record"]["fit_seconds"] == 30.0
+    assert not (out / "scores" / "radar2shape_stage1.csv").exists()
+    before = (out / "table1.csv").read_text()
+    shutil.rmtree(tmp_path / "runs" / "radar2shape_stage1")
+    for _ in range(2):
+        assert cli.main(["report", "--grid", str(grid), "--out", str(out)]) == 0
+        runs = (out / "table1.md").read_text().split("## Runs")[1]
+        assert "| radar2shape_stage1 | archived | fit | 30.0 |  | 30.0 |" in runs and "**54**" in runs
+    assert (out / "table1.csv").read_text() == before  # a fit is no table row, archived or not
+    (out / "scores" / "radar2shape_stage1.json").unlink()
+    assert cli.main(["report", "--grid", str(grid), "--out", str(out)]) == 0
+    assert "| radar2shape_stage1 | missing |" in (out / "table1.md").read_text()
+
+
 def test_runs_table_says_when_a_fit_was_resumed(tmp_path):
     from radar2shape.reporting import Cell, runs_table
 

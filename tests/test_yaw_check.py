@@ -33,3 +33,24 @@ def test_frame_cost_of_a_box_turned_45_degrees_is_its_volume_ratio():
     assert abs(ratio - np.sqrt(2) / 1.2) < 1e-9
     assert abs(iou - (1.2 / np.sqrt(2)) ** 3) < 0.02  # occupancy-sampled
     assert frame_after_turn.frame_cost(trimesh.creation.box(extents=(1.0, 0.2, 0.1)), 0.0) == (1.0, 1.0)
+
+
+def test_placement_rules_on_an_off_centre_box_turned_45_degrees():
+    """A 1 x 0.2 x 0.1 box moved 0.1 along x, turned 45 degrees: turned about the origin its box
+    centre is (0.1, 0.1) / sqrt 2; scaled by sqrt 2 / 1.2 it keeps that direction; re-centred it
+    sits at the origin; with its own offset kept it sits at the scaled, turned offset."""
+    spec = importlib.util.spec_from_file_location("placement_variants", REPO / "scripts" / "placement_variants.py")
+    placement_variants = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(placement_variants)
+    box = trimesh.creation.box(extents=(1.0, 0.2, 0.1)).apply_translation((0.1, 0.0, 0.0))
+    c = np.cos(np.pi / 4)
+    rotation = np.array([[c, -c, 0.0], [c, c, 0.0], [0.0, 0.0, 1.0]])
+    placed = placement_variants.placements(box.vertices, rotation)
+    assert list(placed) == list(placement_variants.RULES)
+    centre = {rule: (v.min(axis=0) + v.max(axis=0)) / 2 for rule, v in placed.items()}
+    ratio = np.sqrt(2) / 1.2
+    np.testing.assert_allclose(centre["turned"], [0.1 * c, 0.1 * c, 0.0], atol=1e-12)
+    np.testing.assert_allclose(centre["scaled"], ratio * centre["turned"], atol=1e-12)
+    np.testing.assert_allclose(centre["re-centred"], 0.0, atol=1e-12)
+    np.testing.assert_allclose(centre["offset kept"], ratio * centre["turned"], atol=1e-12)  # a box: offset = turned offset
+    np.testing.assert_allclose(np.ptp(placed["scaled"], axis=0), [1.0, 1.0, 0.1 * ratio], atol=1e-12)

@@ -116,5 +116,10 @@ def test_turned_in_frame_is_the_turned_object_normalised_in_its_new_heading():
     np.testing.assert_allclose(placed.vertices, normalise(turned)[0].vertices, atol=1e-12)
     mirrored = turned_in_frame(box, np.diag([1.0, -1.0, 1.0]) @ quarter_eighth)
     assert mirrored.volume > 0 and mirrored.is_winding_consistent
-    shifted = box.copy().apply_translation((0.1, 0.0, 0.0))  # off centre: stays where it was
+    shifted = box.copy().apply_translation((0.1, 0.0, 0.0))  # off centre: no turn leaves it where it was,
     np.testing.assert_allclose(turned_in_frame(shifted, np.eye(3)).vertices, shifted.vertices, atol=1e-15)
+    quarter = trimesh.transformations.rotation_matrix(np.pi / 2, (0, 0, 1))[:3, :3]  # a quarter turn only turns
+    np.testing.assert_allclose(turned_in_frame(shifted, quarter).vertices, shifted.vertices @ quarter.T, atol=1e-12)
+    # at 45 degrees: turned and scaled about the origin, its offset with it (not re-centred on its box)
+    np.testing.assert_allclose(turned_in_frame(shifted, quarter_eighth).bounds.mean(axis=0),
+                               np.sqrt(2) / 1.2 * quarter_eighth @ [0.1, 0.0, 0.0], atol=1e-12)

@@ -34,23 +34,23 @@ def scaled(mesh: trimesh.Trimesh, size: float) -> trimesh.Trimesh:
 
 
 def turned_in_frame(mesh: trimesh.Trimesh, rotation: np.ndarray) -> trimesh.Trimesh:
-    """``mesh`` (in the normalised frame) turned by the 3x3 ``rotation``, then put back in the frame.
+    """``mesh`` (in the normalised frame) turned by the 3x3 ``rotation`` about the origin, then scaled
+    into the frame of its new heading.
 
-    The frame belongs to the heading the object is seen in: turning a long object off its axes
-    widens its bounding box, and the same object normalised in that heading is smaller by the ratio
-    of the longest sides. So the turned copy is scaled by that ratio about its bounding-box centre,
-    which is moved to where the unturned mesh had its own (a mesh already normalised ends up
-    normalised; no turn changes nothing). A rotation with determinant -1 (a mirror) also reverses the
-    faces, so the mesh stays outward.
+    An object is normalised in the heading it is seen in: turning a long object off its axes widens
+    its bounding box (an aircraft's cross narrows it), so the same object normalised in that heading
+    is smaller (larger) by the ratio of its longest sides, read here from ``mesh`` itself. The turned
+    copy is scaled about the origin, where normalisation put the object's centre and where a
+    reconstruction draws it; it is not re-centred on its own box, whose centre a reconstruction that
+    misses a wing misplaces (on the test aircraft that cost more than the turn's small shift of a
+    true object's box). No turn changes nothing; a quarter turn only turns. A rotation with
+    determinant -1 (a mirror) also reverses the faces, so the mesh stays outward.
     """
     rotation = np.asarray(rotation, dtype=np.float64)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    before_lo, before_hi = vertices.min(axis=0), vertices.max(axis=0)
     turned = vertices @ rotation.T
-    lo, hi = turned.min(axis=0), turned.max(axis=0)
-    ratio = float((before_hi - before_lo).max() / (hi - lo).max())
-    out = (turned - (lo + hi) / 2.0) * ratio + (before_lo + before_hi) / 2.0
+    ratio = float(np.ptp(vertices, axis=0).max() / np.ptp(turned, axis=0).max())
     faces = np.asarray(mesh.faces)
     if np.linalg.det(rotation) < 0:
         faces = faces[:, ::-1]
-    return trimesh.Trimesh(out, np.ascontiguousarray(faces), process=False)
+    return trimesh.Trimesh(turned * ratio, np.ascontiguousarray(faces), process=False)

@@ -103,6 +103,7 @@ def read_cell(name: str, run_dir: Path, archive: Path | None = None) -> Cell:
     (runs/ lives on one machine, reports/ in the repository) is re-pooled from those scores: the
     same means, spreads and counts as its test; its record, point counts and test config come from
     ``archive/<name>.json`` where the report kept one (:func:`provenance`); figures cannot be redrawn.
+    A fit without a test comes back from its kept record alone (its fit time in the runs table).
     """
     if (run_dir / "done").is_file():
         metrics_file = run_dir / "metrics.json"
@@ -110,20 +111,23 @@ def read_cell(name: str, run_dir: Path, archive: Path | None = None) -> Cell:
         return Cell(name, run_dir, "done", json.loads((run_dir / "done").read_text()), metrics)
     if (run_dir / "failed").is_file():
         return Cell(name, run_dir, "failed")
-    kept = archive / f"{name}.csv" if archive is not None else None
-    if kept is not None and kept.is_file() and not run_dir.exists():
+    if archive is None or run_dir.exists():
+        return Cell(name, run_dir, "missing")
+    kept, side = archive / f"{name}.csv", archive / f"{name}.json"
+    kept_info = json.loads(side.read_text()) if side.is_file() else {}
+    if kept.is_file():
         rows = read_scores(kept)
-        side = kept.with_suffix(".json")
-        kept_info = json.loads(side.read_text()) if side.is_file() else {}
         record = {**kept_info.get("record", {}), "test_data": kept_info.get("test_data"), "scores": str(kept)}
         return Cell(name, run_dir, ARCHIVED, record, {**pooled(rows, score_keys(rows)), **kept_info.get("metrics", {})})
+    if kept_info.get("record"):  # a fit without a test: its record (command, fit time) is all there is
+        return Cell(name, run_dir, ARCHIVED, kept_info["record"])
     return Cell(name, run_dir, "missing")
 
 
 def scores_file(cell: Cell) -> Path | None:
     """The per-shape test scores behind a finished or archived cell (None if it has none)."""
     if cell.state == ARCHIVED:
-        return Path(cell.record["scores"])
+        return Path(cell.record["scores"]) if "scores" in cell.record else None
     if cell.state != "done":
         return None
     files = sorted(cell.run_dir.glob(SCORES_GLOB), key=lambda p: p.stat().st_mtime)
@@ -150,15 +154,18 @@ def collect_cells(grid, archive: Path | None = None) -> tuple[list[Cell], list[C
 
 def copy_scores(cells: list[Cell], folder: Path) -> int:
     """Each finished or archived run's per-shape test scores as ``folder/<run>.csv``, with its
-    :func:`provenance` as ``folder/<run>.json``; returns how many."""
+    :func:`provenance` as ``folder/<run>.json`` (a fit without a test: the record alone, so its fit
+    time outlives its folder); returns how many score files."""
     copied = 0
     for cell in cells:
+        if cell.state not in ("done", ARCHIVED):
+            continue
         path = scores_file(cell)
+        folder.mkdir(parents=True, exist_ok=True)
         if path is not None:
-            folder.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(path, folder / f"{cell.name}.csv")
-            (folder / f"{cell.name}.json").write_text(json.dumps(provenance(cell), indent=1, sort_keys=True))
             copied += 1
+        (folder / f"{cell.name}.json").write_text(json.dumps(provenance(cell), indent=1, sort_keys=True))
     return copied
 
 
