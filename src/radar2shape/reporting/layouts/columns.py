@@ -47,6 +47,7 @@ MODEL_TITLES = {
     "radar2shape_heading": "Radar2Shape, shapes learned in their canonical heading, heading by PO search",
     "radar2shape_front": "Radar2Shape, aircraft and ships learned in their stored heading, heading by PO search",
     "radar2shape_front_s1seed1": "Radar2Shape, aircraft and ships learned in their stored heading, Stage 1 seed 1",
+    "radar2shape_front_shippeds1": "Radar2Shape, aircraft and ships learned in their stored heading, on the shipped Stage 1",
     "radar2shape_front_oracle": "Radar2Shape, aircraft and ships learned in their stored heading, true heading given (oracle)",
     "radar2shape_heading_oracle": "Radar2Shape, shapes learned in their canonical heading, true heading given (oracle)",
     "diffusion_sdf": "Diffusion-SDF",
