@@ -42,8 +42,8 @@ def turned_in_frame(mesh: trimesh.Trimesh, rotation: np.ndarray) -> trimesh.Trim
     is smaller (larger) by the ratio of its longest sides, read here from ``mesh`` itself. The turned
     copy is scaled about the origin, where normalisation put the object's centre and where a
     reconstruction draws it; it is not re-centred on its own box, whose centre a reconstruction that
-    misses a wing misplaces (on the test aircraft that cost more than the turn's small shift of a
-    true object's box). No turn changes nothing; a quarter turn only turns. A rotation with
+    misses a wing misplaces (on the validation and test aircraft that cost more than the turn's
+    small shift of a true object's box: scripts/placement_variants.py). No turn changes nothing; a quarter turn only turns. A rotation with
     determinant -1 (a mirror) also reverses the faces, so the mesh stays outward.
     """
     rotation = np.asarray(rotation, dtype=np.float64)
