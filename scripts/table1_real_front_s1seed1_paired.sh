@@ -29,10 +29,11 @@ done
   --run "Radar2Shape (shipped real model)" $L/radar2shape_circ_steps12k-full-seed0.csv \
   --run "Nearest neighbour" $L/nearest-full.csv \
   --run "Stage 1 seed 1 (ceiling)" $R/ceiling_scores_s1seed1.csv
-# on the shipped model's Stage 1 (full only): does Stage 1 or Stage 2 lose the classes without a front?
+# on the shipped model's Stage 1: does Stage 1 or Stage 2 lose the classes without a front?
 "$PY" scripts/paired_scores.py --out $R/paired_shippeds1.md \
   --pair "front classes, shipped Stage 1 - shipped real model, full" $S/radar2shape_front_shippeds1-full-seed0.csv $L/radar2shape_circ_steps12k-full-seed0.csv \
-  --pair "front classes, shipped Stage 1 - front Stage 1 seed 0, full" $S/radar2shape_front_shippeds1-full-seed0.csv $S/radar2shape_front-full-seed0.csv
+  --pair "front classes, shipped Stage 1 - front Stage 1 seed 0, full" $S/radar2shape_front_shippeds1-full-seed0.csv $S/radar2shape_front-full-seed0.csv \
+  --pair "front classes, shipped Stage 1 - shipped real model, partial" $S/radar2shape_front_shippeds1-partial-seed0.csv $L/radar2shape_circ_steps12k-partial-seed0.csv
 "$PY" scripts/per_class_scores.py --data data/real --out $R/per_class_shippeds1.md \
   --run "front classes canonical, shipped Stage 1" $S/radar2shape_front_shippeds1-full-seed0.csv \
   --run "front classes canonical, front Stage 1 seed 0" $S/radar2shape_front-full-seed0.csv \
