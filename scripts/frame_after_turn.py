@@ -42,19 +42,14 @@ def frame_cost(mesh, yaw_deg: float) -> tuple[float, float]:
     import trimesh
 
     from radar2shape.geometry.normalise import normalise
-    from radar2shape.geometry.query import contains, sample_surface
-    from radar2shape.metrics.functional import occupancy_points
-    from radar2shape.metrics.scoring import score_reconstruction
     from radar2shape.reconstruction import Reconstruction
+    from yaw_check import scorer
 
     unturned = normalise(mesh)[0]
     left = unturned.copy()
     left.apply_transform(trimesh.transformations.rotation_matrix(math.radians(yaw_deg), (0, 0, 1)))
     target, _, scale = normalise(left)
-    gt_points, _ = sample_surface(target, 30_000, 1)
-    occ = occupancy_points(100_000, 2, [target.bounds])
-    score = score_reconstruction(Reconstruction(mesh=left), gt_points, occ, contains(target, occ), 30_000)
-    return float(scale), float(score["iou"])
+    return float(scale), float(scorer(target)(Reconstruction(mesh=left))["iou"])
 
 
 def main(argv=None) -> int:

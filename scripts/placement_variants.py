@@ -59,9 +59,6 @@ def main(argv=None) -> int:
     import radar2shape.geometry.normalise as normalise_module
     import yaw_check
     from radar2shape.atomic import write_text_atomic
-    from radar2shape.geometry.query import contains, sample_surface
-    from radar2shape.metrics.functional import occupancy_points
-    from radar2shape.metrics.scoring import score_reconstruction
     from radar2shape.pretrained import load_model
     from radar2shape.reconstruction import Reconstruction
 
@@ -89,13 +86,10 @@ def main(argv=None) -> int:
         if not placed:  # an empty reconstruction is not placed: it scores 0 whatever the rule
             rows.append((records.record_ids[i], dict.fromkeys(RULES, 0.0)))
             continue
-        target = yaw_check.turned(trimesh.Trimesh(record["vertices"], record["faces"], process=False), args.yaw_deg)
-        gt_points, _ = sample_surface(target, 30_000, 1)
-        occ = occupancy_points(100_000, 2, [target.bounds])
-        inside = contains(target, occ)
+        score = yaw_check.scorer(yaw_check.turned(trimesh.Trimesh(record["vertices"], record["faces"], process=False),
+                                                  args.yaw_deg))
         faces = placed["mesh"].faces[:, ::-1] if np.linalg.det(placed["rotation"]) < 0 else placed["mesh"].faces
-        scores = {rule: score_reconstruction(Reconstruction(mesh=trimesh.Trimesh(v, faces, process=False)),
-                                             gt_points, occ, inside, 30_000)["iou"]
+        scores = {rule: score(Reconstruction(mesh=trimesh.Trimesh(v, faces, process=False)))["iou"]
                   for rule, v in placements(placed["mesh"].vertices, placed["rotation"]).items()}
         rows.append((records.record_ids[i], scores))
         print(f"{records.record_ids[i]}: " + ", ".join(f"{k} {v:.3f}" for k, v in scores.items()))

@@ -48,26 +48,32 @@ def turned(mesh, yaw_deg: float):
     return normalise(out)[0]
 
 
+def scorer(target):
+    """A function scoring a :class:`Reconstruction` against the mesh ``target`` (its points sampled once,
+    with the evaluator's counts)."""
+    from radar2shape.geometry.query import contains, sample_surface
+    from radar2shape.metrics.functional import occupancy_points
+    from radar2shape.metrics.scoring import score_reconstruction
+
+    gt_points, _ = sample_surface(target, 30_000, 1)
+    occ = occupancy_points(100_000, 2, [target.bounds])
+    inside = contains(target, occ)
+    return lambda recon: score_reconstruction(recon, gt_points, occ, inside, 30_000)
+
+
 def score_turn(model, record, yaw_deg: float) -> dict[str, float]:
     import trimesh
 
     from radar2shape.commands.reconstruct import model_batch
-    from radar2shape.radar.measured import GridInput
-
-    from radar2shape.metrics.functional import occupancy_points
-    from radar2shape.geometry.query import contains, sample_surface
-    from radar2shape.metrics.scoring import score_reconstruction
     from radar2shape.radar import simulate
+    from radar2shape.radar.measured import GridInput
 
     spec = model.radar_spec
     mesh = turned(trimesh.Trimesh(record["vertices"], record["faces"], process=False), yaw_deg)
     response = simulate(mesh, spec.grid.aspect_rad, spec.grid.roll_rad, spec.grid.freq_hz)
     db = spec.to_db(response)
     batch = model_batch(spec, GridInput(db, np.ones(db.shape[:2], bool), np.ones(db.shape[2], bool), 1.0))
-    recon = model.reconstruct(batch)[0]
-    gt_points, _ = sample_surface(mesh, 30_000, 1)
-    occ = occupancy_points(100_000, 2, [mesh.bounds])
-    return score_reconstruction(recon, gt_points, occ, contains(mesh, occ), 30_000)
+    return scorer(mesh)(model.reconstruct(batch)[0])
 
 
 def records_of(data: Path, classes: list[str], split: str = "test"):

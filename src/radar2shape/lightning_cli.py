@@ -153,16 +153,8 @@ class Radar2ShapeCLI(LightningCLI):
         parsed = self.config[subcommand]["model"]["init_args"]
         given = {key: parsed[key] for key in model_setting_keys(self._command_line) if key in parsed}
         super()._parse_ckpt_path()
-        if given:
-            init_args: dict = {}
-            for key, value in given.items():
-                *parents, leaf = key.split(".")
-                level = init_args
-                for parent in parents:
-                    level = level.setdefault(parent, {})
-                level[leaf] = value
-            model = {"class_path": self.config[subcommand]["model"]["class_path"], "init_args": init_args}
-            self.config = self.parser.parse_object({subcommand: {"model": model}}, self.config)
+        for key, value in given.items():
+            self.config[f"{subcommand}.model.init_args.{key}"] = value
 
     def _set_seed(self) -> None:
         """Seed quietly: "Seed set to N" is logged once the classes are built (see
