@@ -19,6 +19,13 @@ Collection is cached per shape in ``--cache`` and resumes.
 
 With ``--verifier FILE --fit-shapes 0`` a trained verifier is only scored, e.g. on another family's
 test split (``--split test``) to see whether its choice carries over.
+
+With ``--eval-split S`` the verifier is fitted on the first ``--fit-shapes`` records of ``--split``
+and scored on the first ``--eval-shapes`` of ``S`` (for a model trained on a dataset's train split:
+fit on what is left to it, score on the test split the evaluator uses). ``--turns T`` adds, per
+fit record, T - 1 copies turned about the aspect axis by a random whole number of roll steps and
+mirrored half the time (exact: ``data_modules.augment``), so the verifier sees each object in
+headings the stored radar does not show.
 """
 
 from __future__ import annotations
@@ -38,6 +45,10 @@ def parse_args(argv):
     parser.add_argument("--ckpt", type=Path, required=True, help="a RadarDiffusion checkpoint")
     parser.add_argument("--data", type=Path, required=True, help="records the model did not train on")
     parser.add_argument("--split", default="train", help="the data split whose records are used (default train)")
+    parser.add_argument("--eval-split", help="score on this split's first --eval-shapes records instead of the "
+                        "last records of --split")
+    parser.add_argument("--turns", type=int, default=1, help="views per fit record: the stored heading and "
+                        "T - 1 exact whole-step turns (default 1)")
     parser.add_argument("--verifier", type=Path, help="score this trained verifier instead of fitting one")
     parser.add_argument("--fit-shapes", type=int, default=300)
     parser.add_argument("--eval-shapes", type=int, default=100)
@@ -48,8 +59,29 @@ def parse_args(argv):
     return parser.parse_args(argv)
 
 
-def collect(model, dm, split, indices, k, cache: Path, keep_latents: set[int]) -> dict:
-    """Per shape index: features [K, F], candidate IoUs [K] (and latents for ``keep_latents``), cached."""
+Key = tuple  # (split, record index, view): view 0 the stored heading, view v > 0 a seeded exact turn
+
+
+def view_of(dm, split: str, index: int, view: int) -> dict:
+    """The record's evaluation item in view ``view``: as stored, or turned by a seeded random whole
+    number of roll steps and maybe mirrored (radar, mask and point sets together)."""
+    import torch
+
+    from data_modules.augment import turn_and_mirror
+
+    item = dm.dataset(split)[(0, index)]
+    if view == 0:
+        return item
+    roll = dm.radar_spec.grid.roll_rad
+    draw = np.random.default_rng([index, view])
+    shift, mirror = int(draw.integers(len(roll))), bool(draw.integers(2))
+    arrays = {key: item[key].numpy() for key in ("radar", "radar_mask", "occ_points", "eval_points")}
+    turned = turn_and_mirror(arrays, shift, mirror, roll_rad=roll)
+    return {**item, **{key: torch.from_numpy(np.ascontiguousarray(value)) for key, value in turned.items()}}
+
+
+def collect(model, dm, keys: list[Key], k, cache: Path, keep_latents: set[Key]) -> dict:
+    """Per key: features [K, F], candidate IoUs [K] (and latents for ``keep_latents``), cached."""
     import torch
 
     from radar2shape.atomic import atomic_path
@@ -58,11 +90,10 @@ def collect(model, dm, split, indices, k, cache: Path, keep_latents: set[int]) -
     from tqdm import tqdm
 
     store = torch.load(cache, weights_only=False) if cache.exists() else {}
-    dataset = dm.dataset(split)
     probe = probe_points(float(model.stage1.hparams.bound))
-    todo = [i for i in indices if i not in store or (i in keep_latents and "latents" not in store[i])]
-    for count, i in enumerate(tqdm(todo, desc="candidates", unit="shape")):
-        item = dataset[(0, i)]
+    todo = [key for key in keys if key not in store or (key in keep_latents and "latents" not in store[key])]
+    for count, key in enumerate(tqdm(todo, desc="candidates", unit="shape")):
+        item = view_of(dm, *key)
         batch = {"radar": renormalise(item["radar"][None], item["radar_mask"][None], dm.radar_spec, model.radar_spec),
                  "radar_mask": item["radar_mask"][None]}
         latents = model.sample_latents(batch, num_samples=k, sample_seed=0)[0]
@@ -70,16 +101,16 @@ def collect(model, dm, split, indices, k, cache: Path, keep_latents: set[int]) -
         inside = model.sdf_function(latents)(item["occ_points"]) < 0
         truth = item["occ_inside"].bool()
         iou = ((inside & truth).sum(1) / (inside | truth).sum(1).clamp_min(1)).float()
-        store[i] = {"features": candidate_features(model, tokens, latents, probe), "iou": iou}
-        if i in keep_latents:
-            store[i]["latents"] = latents
+        store[key] = {"features": candidate_features(model, tokens, latents, probe), "iou": iou}
+        if key in keep_latents:
+            store[key]["latents"] = latents
         if count % 20 == 19 or count == len(todo) - 1:
             with atomic_path(cache) as tmp:
                 torch.save(store, tmp)
     return store
 
 
-TOP = (2, 3)  # besides the single pick: the mean SDF of the verifier's best 2 and best 3
+TOP = (2, 3)  # (holds models.verifier.KEEP) besides the single pick: the mean SDF of the verifier's best 2 and best 3
 SIZES = ((64, 400), (64, 1000), (128, 1000))  # (hidden width, full-batch epochs) tried
 FOLDS = 4
 
@@ -119,47 +150,59 @@ def main(argv=None) -> int:
     from data_modules.datamodules import ShapeDataModule
     from radar2shape.atomic import write_text_atomic
     from radar2shape.geometry.families.folder import sha256_of
-    from radar2shape.models.verifier import feature_names, fit_verifier, load_verifier, save_verifier
+    from radar2shape.models.verifier import (
+        KEEP, feature_names, fit_verifier, kept_candidates, load_verifier, save_verifier,
+    )
     from radar2shape.pretrained import load_model
 
     torch.set_num_threads(2)
     start = time.perf_counter()
     model = load_model(args.ckpt)
-    split = args.split
-    dm = ShapeDataModule(root=str(args.data), observability="full",
-                         points={split: {"surface": 0, "sdf": 0, "eval": 30000, "occ": 100000}})
-    n = len(dm.records(split))
-    if args.fit_shapes + args.eval_shapes > n:
+    split, eval_split = args.split, args.eval_split or args.split
+    sampled = {"surface": 0, "sdf": 0, "eval": 30000, "occ": 100000}
+    dm = ShapeDataModule(root=str(args.data), observability="full", points={split: sampled, eval_split: sampled})
+    n, n_eval = len(dm.records(split)), len(dm.records(eval_split))
+    if args.turns < 1:
+        raise SystemExit(f"error: --turns: expected a positive integer, got {args.turns}")
+    if eval_split == split and args.fit_shapes + args.eval_shapes > n:
         raise SystemExit(f"error: {args.data}: {n} {split} records, fewer than --fit-shapes + --eval-shapes")
+    if eval_split != split and (args.fit_shapes > n or args.eval_shapes > n_eval):
+        raise SystemExit(f"error: {args.data}: {n} {split} and {n_eval} {eval_split} records, fewer than "
+                         "--fit-shapes or --eval-shapes")
     if (args.verifier is None) == (args.fit_shapes == 0):
         raise SystemExit("error: fit a verifier (--fit-shapes N > 0) or score one (--verifier FILE --fit-shapes 0)")
-    fit_ids = list(range(args.fit_shapes))
-    eval_ids = list(range(n - args.eval_shapes, n))
+    fit_keys = [(split, i, view) for i in range(args.fit_shapes) for view in range(args.turns)]
+    first_eval = n - args.eval_shapes if eval_split == split else 0
+    eval_keys = [(eval_split, i, 0) for i in range(first_eval, first_eval + args.eval_shapes)]
     args.cache.parent.mkdir(parents=True, exist_ok=True)
-    store = collect(model, dm, split, fit_ids + eval_ids, args.candidates, args.cache, set(eval_ids))
+    store = collect(model, dm, fit_keys + eval_keys, args.candidates, args.cache, set(eval_keys))
 
     if args.verifier is not None:
         verifier = load_verifier(args.verifier, model.n_levels)
-        trained = f"Verifier `{args.verifier}` (not refitted), scored on the last {args.eval_shapes} {split} records"
+        trained = f"Verifier `{args.verifier}` (not refitted), scored on {args.eval_shapes} {eval_split} records"
         cv_lines = []
     else:
-        features = torch.stack([store[i]["features"] for i in fit_ids])
-        iou = torch.stack([store[i]["iou"] for i in fit_ids])
+        features = torch.stack([store[key]["features"] for key in fit_keys])
+        iou = torch.stack([store[key]["iou"] for key in fit_keys])
         cv = {size: cross_validated_gain(features, iou, *size) for size in SIZES}
         hidden, epochs = max(cv, key=cv.get)
         verifier = fit_verifier(features, iou, hidden=hidden, epochs=epochs)
         cv_lines = ["", f"Size chosen by {FOLDS}-fold cross-validation on the fit shapes (mean gain of the pick over the first "
                     "sample, decoded-SDF IoU): " + ", ".join(f"{h} wide x {e} epochs {g:+.4f}" for (h, e), g in cv.items())
                     + f"; kept {hidden} x {epochs}."]
-        trained = (f"Verifier trained on {args.fit_shapes} shapes ({split} split, first records), "
-                   f"scored on {args.eval_shapes} others (last records)")
+        views = f", each in {args.turns} headings (stored + exact whole-step turns)" if args.turns > 1 else ""
+        scored_on = (f"{args.eval_shapes} others (last records)" if eval_split == split
+                     else f"the first {args.eval_shapes} {eval_split} records")
+        trained = (f"Verifier trained on {args.fit_shapes} shapes ({split} split, first records{views}), "
+                   f"scored on {scored_on}")
     names = feature_names(model.n_levels)
     consensus_column = names.index("consensus")
 
-    dataset = dm.dataset(split)
+    dataset = dm.dataset(eval_split)
     rows = []
-    for i in eval_ids:
-        entry, item = store[i], dataset[(0, i)]
+    for key in eval_keys:
+        i = key[1]
+        entry, item = store[key], dataset[(0, i)]
         latents, cand_iou = entry["latents"], entry["iou"]
         with torch.no_grad():
             predicted = verifier(entry["features"])
@@ -167,20 +210,20 @@ def main(argv=None) -> int:
                  "verifier": int(predicted.argmax()), "oracle": int(cand_iou.argmax())}
         scored = {rule: mesh_iou(model, latents[j:j + 1], item) for rule, j in picks.items()}
         scored["mean_of_k"] = mesh_iou(model, latents, item)
-        ranked = predicted.argsort(descending=True)
         for m in TOP:  # the mean SDF of the verifier's m best-scored candidates
-            scored[f"verifier_top{m}"] = mesh_iou(model, latents[ranked[:m]], item)
-        rows.append({"record": dm.records(split).record_ids[i],
-                     "class": dm.class_names[dm.manifest["labels"][split][i]],
+            scored[f"verifier_top{m}"] = mesh_iou(model, latents[kept_candidates(predicted, m)], item)
+        rows.append({"record": dm.records(eval_split).record_ids[i],
+                     "class": dm.class_names[dm.manifest["labels"][eval_split][i]],
                      **{f"iou_{rule}": value for rule, value in scored.items()},
                      "verifier_pick": picks["verifier"], "predicted_iou": float(predicted[picks["verifier"]]),
+                     f"predicted_iou_top{KEEP}": float(predicted[kept_candidates(predicted, KEEP)].mean()),
                      "mean_consensus": float(entry["features"][:, consensus_column].mean())})
 
     def column(name):
         return np.array([row[name] for row in rows], dtype=float)
 
-    eval_features = torch.stack([store[i]["features"] for i in eval_ids])
-    eval_iou = torch.stack([store[i]["iou"] for i in eval_ids])
+    eval_features = torch.stack([store[key]["features"] for key in eval_keys])
+    eval_iou = torch.stack([store[key]["iou"] for key in eval_keys])
     first_sdf, oracle_sdf = float(eval_iou[:, 0].mean()), float(eval_iou.max(1).values.mean())
 
     def picked(index):
@@ -206,11 +249,14 @@ def main(argv=None) -> int:
     chosen = column("iou_verifier")
     rho_pred, p_pred = spearmanr(column("predicted_iou"), chosen)
     rho_cons, p_cons = spearmanr(column("mean_consensus"), chosen)
+    rho_kept, p_kept = spearmanr(column(f"predicted_iou_top{KEEP}"), column(f"iou_verifier_top{KEEP}"))
     gap = column("iou_oracle").mean() - first.mean()
     lines += ["", f"- share of the first-to-oracle gap the verifier closes: "
               f"{(chosen.mean() - first.mean()) / gap:.0%}" if gap > 0 else "- no gap between first sample and oracle",
               f"- confidence: Spearman(predicted IoU, IoU of the returned shape) = {rho_pred:+.3f} (p = {p_pred:.2g}); "
-              f"Spearman(mean consensus of the K samples, IoU) = {rho_cons:+.3f} (p = {p_cons:.2g})",
+              f"Spearman(mean consensus of the K samples, IoU) = {rho_cons:+.3f} (p = {p_cons:.2g}); what "
+              f"`reconstruct --candidates` returns by default (the mean of the best {KEEP}): Spearman(their mean "
+              f"predicted IoU, its IoU) = {rho_kept:+.3f} (p = {p_kept:.2g})",
               f"- features ({len(names)}): {', '.join(names)}",
               *cv_lines,
               "", "Picking by one feature alone (its largest or smallest value among the K), scored by the decoded SDF's "
@@ -229,7 +275,7 @@ def main(argv=None) -> int:
     if args.out and args.verifier is None:
         save_verifier(verifier, args.out, model.n_levels,
                       {"checkpoint": args.ckpt.name, "checkpoint_sha256": sha256_of(args.ckpt),  # the exact model whose samples trained it
-                       "data": str(args.data), "fit_shapes": args.fit_shapes,
+                       "data": str(args.data), "split": split, "fit_shapes": args.fit_shapes, "turns": args.turns,
                        "candidates": args.candidates, "report": str(args.report)})
         print(f"wrote {args.out}")
     return 0

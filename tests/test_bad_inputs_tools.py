@@ -350,9 +350,10 @@ def test_constants_copied_for_a_fast_start_match_their_sources():
     from radar2shape.commands import reconstruct
     from radar2shape.geometry.mesh_io import WRITE_SUFFIXES
     from radar2shape.models.base import RADAR_SPEC_KEY
+    from radar2shape.models.verifier import KEEP
     from radar2shape.radar.measured import FORMATS, MIN_OVERLAP
 
-    assert reconstruct.FORMATS == FORMATS and reconstruct.MIN_OVERLAP == MIN_OVERLAP
+    assert reconstruct.FORMATS == FORMATS and reconstruct.MIN_OVERLAP == MIN_OVERLAP and reconstruct.KEEP == KEEP
     assert pretrained.RADAR_SPEC_KEY == RADAR_SPEC_KEY and reconstruct.MESH_OUT_SUFFIXES == WRITE_SUFFIXES
 
 

@@ -240,13 +240,23 @@ def test_candidates_return_the_verified_sample(checkpoint, tmp_path, capsys):
     save_verifier(verifier, path, model.n_levels, {"rule": "volume"})
     radar = response_file(tmp_path / "r.npz")
     out = tmp_path / "m.obj"
-    assert run(checkpoint, radar, out, "--candidates", "3", "--steps", "3", "--seed", "2", "--verifier", str(path)) == 0
+    assert run(checkpoint, radar, out, "--candidates", "4", "--keep", "1", "--steps", "3", "--seed", "2",
+               "--verifier", str(path)) == 0
     printed = capsys.readouterr().out
     grid = measured_input([tmp_path / "r.npz"], "npz", model.radar_spec)
-    latents, predicted = score_candidates(model, verifier, model_batch(model.radar_spec, grid), 3, 3, 2)
-    best = int(predicted.argmax())
-    assert f"verifier: returned candidate {best + 1} of 3, predicted IoU {float(predicted[best]):.2f} " in printed
+    latents, predicted = score_candidates(model, verifier, model_batch(model.radar_spec, grid), 4, 3, 2)
+    order = [int(i) for i in predicted.argsort(descending=True)]
+    best = order[0]
+    assert f"verifier: returned candidate {best + 1} of 4, predicted IoU {float(predicted[best]):.2f} " in printed
     expected = model.mean_mesh(latents[best:best + 1])[0]
+    assert len(trimesh.load(out, process=False).vertices) == len(expected.vertices)
+    # by default the mean SDF of the best three, with the mean of their predicted IoUs
+    assert run(checkpoint, radar, out, "--candidates", "4", "--steps", "3", "--seed", "2", "--verifier", str(path)) == 0
+    printed = capsys.readouterr().out
+    top = order[:3]
+    assert (f"verifier: returned the mean of candidates {', '.join(str(i + 1) for i in top)} (its best 3) of 4, "
+            f"predicted IoU {float(predicted[top].mean()):.2f} ") in printed
+    expected = model.mean_mesh(latents[top])[0]
     assert len(trimesh.load(out, process=False).vertices) == len(expected.vertices)
     # the default verifier lives beside the checkpoint: absent there, one line says where it looked
     copy = tmp_path / "model.ckpt"
@@ -269,6 +279,9 @@ def test_candidates_return_the_verified_sample(checkpoint, tmp_path, capsys):
     (["--candidates", "1"], "--candidates: expected an integer >= 2, got 1"),
     (["--candidates", "2", "--samples", "2"], "use one of them"),
     (["--verifier", "v.pt"], "--verifier is read with --candidates K"),
+    (["--keep", "2"], "--keep is read with --candidates K"),
+    (["--candidates", "3", "--keep", "4"], "--keep: at most the 3 candidates, got 4"),
+    (["--candidates", "3", "--keep", "0"], "--keep: expected a positive integer, got 0"),
 ])
 def test_bad_candidate_options(checkpoint, tmp_path, capsys, extra, message):
     assert run(checkpoint, response_file(tmp_path / "r.npz"), tmp_path / "m.obj", *extra) == 2

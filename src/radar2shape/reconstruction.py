@@ -17,12 +17,15 @@ class Reconstruction:
     """A predicted shape in normalised coordinates (unit cube [-0.5, 0.5]^3).
 
     Exactly what the model produces: a surface mesh, or a point set for point-cloud models;
-    ``profile`` is the (r, z) outline of roll-symmetric predictions (None otherwise).
+    ``profile`` is the (r, z) outline of roll-symmetric predictions (None otherwise);
+    ``predicted_iou`` the model's own estimate of its IoU (a verifier's; None when it makes none),
+    which the evaluator logs beside the true IoU.
     """
 
     mesh: trimesh.Trimesh | None = None
     points: np.ndarray | None = None
     profile: np.ndarray | None = None
+    predicted_iou: float | None = None
 
     @property
     def is_empty(self) -> bool:

@@ -61,6 +61,7 @@ def test_the_evaluator_logs_consistency_per_shape_and_its_rank_correlation_with_
     guesses = [truths[0].copy(), trimesh.creation.icosphere(2, radius=0.3), trimesh.creation.box(extents=(0.5,) * 3),
                trimesh.creation.icosphere(2, radius=0.25)]
     truths.append(truths[1])
+    predicted = [0.9, 0.2, 0.6, 0.1]  # the model's own IoU estimates, logged beside the true IoU
     records = []
     for i, truth in enumerate(truths):
         observed = to_db(simulate(truth, grid.aspect_rad, grid.roll_rad, grid.freq_hz))
@@ -78,7 +79,7 @@ def test_the_evaluator_logs_consistency_per_shape_and_its_rank_correlation_with_
             self.layer = torch.nn.Linear(1, 1)
 
         def reconstruct(self, batch):
-            return [Reconstruction(mesh=guesses[int(i)]) for i in batch["index"]]
+            return [Reconstruction(mesh=guesses[int(i)], predicted_iou=predicted[int(i)]) for i in batch["index"]]
 
         def test_step(self, batch, batch_idx):
             return None
@@ -104,3 +105,6 @@ def test_the_evaluator_logs_consistency_per_shape_and_its_rank_correlation_with_
     iou = [float(row["iou"]) for row in rows]
     assert [float(row["radar_consistency"]) for row in rows] == pytest.approx(direct, rel=1e-4, abs=1e-6)  # float32 radar
     assert logged["test/spearman_radar_consistency_iou"] == pytest.approx(spearmanr(direct, iou).statistic)
+    assert [float(row["predicted_iou"]) for row in rows] == pytest.approx(predicted)
+    assert logged["test/predicted_iou_mean"] == pytest.approx(np.mean(predicted))
+    assert logged["test/spearman_predicted_iou_iou"] == pytest.approx(spearmanr(predicted, iou).statistic)

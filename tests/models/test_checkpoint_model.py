@@ -79,6 +79,42 @@ def test_mesh_resolution_override_meshes_on_that_grid(tiny, single_thread):  # n
         CheckpointModel(ckpt=str(tiny.exported), mesh_resolution=1)
 
 
+def test_a_verifier_returns_the_mean_of_its_best_scored_candidates(tiny, tmp_path, single_thread):  # noqa: F811
+    """With a verifier the reconstruction of each input is the mean SDF of the ``keep`` best-scored of K
+    samples drawn for that input alone, carrying their mean predicted IoU, as ``reconstruct --candidates``."""
+    from test_reconstruct_cli import volume_verifier
+
+    from radar2shape.models.verifier import default_verifier_path, save_verifier, score_candidates
+
+    plain = CheckpointModel(ckpt=str(tiny.exported))
+    verifier = volume_verifier(plain.inner)
+    save_verifier(verifier, default_verifier_path(tiny.exported), plain.inner.n_levels, {"candidates": 4})
+    try:
+        wrapped = CheckpointModel(ckpt=str(tiny.exported), verifier="beside", candidates=4, keep=2)
+        spec_ = wrapped.inner.radar_spec
+        wrapped._data_spec = spec_
+        rng = np.random.default_rng(5)
+        db = rng.normal(spec_.db_mean, spec_.db_std, size=(2, 4, 8, 8))
+        mask = np.ones((2, 4, 8), dtype=bool)
+        batch = {"radar": torch.from_numpy(np.stack([spec_.normalise(d, m) for d, m in zip(db, mask)])).float(),
+                 "radar_mask": torch.from_numpy(mask)}
+        got = wrapped.reconstruct(batch)
+        for i, recon in enumerate(got):
+            one = {key: batch[key][i:i + 1] for key in batch}
+            latents, predicted = score_candidates(wrapped.inner, verifier, one, 4)
+            top = predicted.argsort(descending=True)[:2]
+            want, _ = wrapped.inner.mean_mesh(latents[top])
+            np.testing.assert_allclose(recon.mesh.vertices, want.vertices, atol=1e-5)
+            assert recon.predicted_iou == pytest.approx(float(predicted[top].mean()), abs=1e-6)
+        for bad, message in (({"keep": 5}, "keep: expected 1 to candidates \\(4\\), got 5"),
+                             ({"candidates": 8}, "trained to choose among K = 4 candidates, not 8"),
+                             ({"verifier": str(tmp_path / "none.pt")}, "no verifier file")):
+            with pytest.raises(UserInputError, match=message):
+                CheckpointModel(ckpt=str(tiny.exported), **{"verifier": "beside", "candidates": 4, **bad})
+    finally:
+        default_verifier_path(tiny.exported).unlink()
+
+
 def test_fit_is_refused(tiny):  # noqa: F811
     wrapped = CheckpointModel(ckpt=str(tiny.exported))
     with pytest.raises(UserInputError, match="radar2shape test"):

@@ -37,6 +37,8 @@ from radar2shape.errors import UserInputError
 from radar2shape.preflight import add_memory_option, check_input_file, check_memory, memory_limit_bytes
 from radar2shape.pretrained import DEFAULT_NAME, SHIPPED_MODELS, load_model
 
+KEEP = 3  # = models.verifier.KEEP (not imported: it needs torch before the arguments are parsed)
+
 if TYPE_CHECKING:
     import torch
 
@@ -95,8 +97,11 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         help=f"least fraction of the model's band the file must cover (default {MIN_OVERLAP})")
     parser.add_argument("--save-input", type=Path, help="also write the model-grid input (.npz: db, mask, ...)")
     parser.add_argument("--samples", type=int, help="K sampled shapes; the mesh is their mean (default: model's)")
-    parser.add_argument("--candidates", type=int, help="draw K shapes and return the one the model's verifier "
-                        "scores best, with its predicted IoU (3D models with a verifier file; not with --samples)")
+    parser.add_argument("--candidates", type=int, help="draw K shapes and return the mean of the ones the model's "
+                        "verifier scores best (--keep), with their predicted IoU (3D models with a verifier file; "
+                        "not with --samples)")
+    parser.add_argument("--keep", type=int, help="with --candidates: how many of the best-scored candidates are "
+                        f"averaged (mean SDF; default {KEEP}, at most K; 1 returns the single best)")
     parser.add_argument("--verifier", type=Path, help="verifier file for --candidates (default: the checkpoint's "
                         "<name>.verifier.pt beside it)")
     parser.add_argument("--steps", type=int, help="DDIM steps, RadarDiffusion only (default: the model's)")
@@ -159,24 +164,25 @@ def reconstruct_input(model, grid: GridInput, samples: int | None = None, steps:
     return recon, spread
 
 
-def reconstruct_best_candidate(model, verifier, grid: GridInput, candidates: int, steps: int | None = None,
-                               resolution: int | None = None, seed: int = 0):
-    """``(Reconstruction, SDF spread over the K candidates at its vertices, chosen index, predicted IoUs [K])``."""
+def reconstruct_best_candidate(model, verifier, grid: GridInput, candidates: int, keep: int = KEEP,
+                               steps: int | None = None, resolution: int | None = None, seed: int = 0):
+    """``(Reconstruction, SDF spread over the K candidates at its vertices, kept indices best first, predicted
+    IoUs [K])``: the mesh is the mean SDF of the ``keep`` best-scored candidates, ``predicted_iou`` their mean."""
     import torch
 
-    from radar2shape.models.verifier import score_candidates
+    from radar2shape.models.verifier import verified_latents
     from radar2shape.reconstruction import Reconstruction
 
     batch = model_batch(model.radar_spec, grid)
-    latents, predicted = score_candidates(model, verifier, batch, candidates, steps, seed)
-    best = int(predicted.argmax())
-    mesh, _ = model.mean_mesh(latents[best:best + 1], resolution)
+    latents, predicted, kept = verified_latents(model, verifier, batch, candidates, keep, steps, seed)
+    mesh, _ = model.mean_mesh(latents[kept], resolution)
     spread = np.zeros(0, dtype=np.float32)
     if len(mesh.vertices):
         with torch.no_grad():
             vertices = torch.as_tensor(mesh.vertices, dtype=torch.float32, device=model.device)
             spread = model.sdf_function(latents)(vertices).std(0, unbiased=False).cpu().numpy()
-    return Reconstruction(mesh=model.place_in_heading(mesh, batch, 0)), spread, best, predicted.cpu().numpy()
+    recon = Reconstruction(mesh=model.place_in_heading(mesh, batch, 0), predicted_iou=float(predicted[kept].mean()))
+    return recon, spread, kept.cpu().numpy(), predicted.cpu().numpy()
 
 
 def save_png(path: Path, db: np.ndarray, spec: RadarSpec, mesh, title: str) -> None:
@@ -210,15 +216,18 @@ def save_png(path: Path, db: np.ndarray, spec: RadarSpec, mesh, title: str) -> N
 
 def _check_arguments(args: argparse.Namespace) -> list[Path]:
     """Everything checkable without the model; returns the output paths (the mesh first)."""
-    for name in ("samples", "steps", "resolution", "candidates"):
+    for name in ("samples", "steps", "resolution", "candidates", "keep"):
         value = getattr(args, name)
         if value is not None and value < (2 if name in ("resolution", "candidates") else 1):
             least = "an integer >= 2" if name in ("resolution", "candidates") else "a positive integer"
             raise UserInputError(f"--{name}: expected {least}, got {value}")
     if args.candidates is not None and args.samples is not None:
         raise UserInputError("--candidates returns one verified sample, --samples the mean of K: use one of them")
-    if args.verifier is not None and args.candidates is None:
-        raise UserInputError("--verifier is read with --candidates K; add --candidates")
+    for name in ("verifier", "keep"):
+        if getattr(args, name) is not None and args.candidates is None:
+            raise UserInputError(f"--{name} is read with --candidates K; add --candidates")
+    if args.keep is not None and args.keep > args.candidates:
+        raise UserInputError(f"--keep: at most the {args.candidates} candidates, got {args.keep}")
     if args.seed < 0:
         raise UserInputError(f"--seed: expected a non-negative integer, got {args.seed}")
     if args.format is not None and args.measured is None:
@@ -313,8 +322,9 @@ def main(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     if verifier is not None:
-        recon, spread, best, predicted = reconstruct_best_candidate(model, verifier, grid, args.candidates, args.steps,
-                                                                    args.resolution, args.seed)
+        keep = args.keep or min(KEEP, args.candidates)
+        recon, spread, kept, predicted = reconstruct_best_candidate(model, verifier, grid, args.candidates, keep,
+                                                                    args.steps, args.resolution, args.seed)
     else:
         recon, spread = reconstruct_input(model, grid, args.samples, args.steps, args.resolution, args.seed)
     seconds = time.perf_counter() - start
@@ -344,7 +354,9 @@ def main(args: argparse.Namespace) -> int:
                    f"{spread.mean():.4f}, max {spread.max():.4f}")
     print(f"wrote {args.out}: {detail}")
     if verifier is not None:
-        print(f"verifier: returned candidate {best + 1} of {args.candidates}, predicted IoU {predicted[best]:.2f} "
+        which = (f"candidate {kept[0] + 1}" if len(kept) == 1 else
+                 f"the mean of candidates {', '.join(str(i + 1) for i in kept)} (its best {len(kept)})")
+        print(f"verifier: returned {which} of {args.candidates}, predicted IoU {recon.predicted_iou:.2f} "
               f"(candidates {predicted.min():.2f} to {predicted.max():.2f}; docs/metrics.md)")
     if not profile:
         from radar2shape.metrics.consistency import radar_consistency

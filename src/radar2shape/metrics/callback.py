@@ -62,7 +62,8 @@ def take(batch: dict, rows: slice) -> dict:
 
 # (confidence, score) pairs whose Spearman rank correlation over the shapes is logged when both are scored:
 # how well a score that needs no ground truth says which reconstructions are poor.
-RANKED = (("radar_consistency", "iou"),)
+RANKED = (("radar_consistency", "iou"), ("predicted_iou", "iou"))
+PREDICTED_IOU = "predicted_iou"  # row key of a reconstruction's own IoU estimate (Reconstruction.predicted_iou)
 
 
 def rank_correlation(rows: list[dict], a: str, b: str) -> float | None:
@@ -235,8 +236,10 @@ class ReconstructionEvaluator(L.Callback):
         else:  # the position in the split under an interleaving distributed sampler
             index = (self._seen[split] + np.arange(n)) * trainer.world_size + trainer.global_rank
         rows = [{"index": int(index[i]), "label": int(labels[i])} for i in range(n)]
-        for row, scores in zip(rows, self._score(recs, batch, index)):
+        for row, scores, rec in zip(rows, self._score(recs, batch, index), recs):
             row.update(scores)
+            if getattr(rec, PREDICTED_IOU, None) is not None:
+                row[PREDICTED_IOU] = float(rec.predicted_iou)
         for scorer in self.scorers:
             for key, count in scorer.counts(batch).items():
                 self._counts[split][key] = min(count, self._counts[split].get(key, count))

@@ -57,10 +57,16 @@ class CheckpointModel(ReconstructionModel):
             latent models only): how a level is tried on the validation split before it is exported.
         mesh_resolution: marching-cubes grid of the reconstructions and the Stage-1 ceiling (None:
             the checkpoint's own; latent models only).
+        verifier: a verifier file (:mod:`radar2shape.models.verifier`), or ``"beside"`` for the
+            checkpoint's own ``<name>.verifier.pt``: each reconstruction is then the mean SDF of the
+            ``keep`` best-scored of ``candidates`` samples, as ``reconstruct --candidates`` returns it,
+            and carries their mean predicted IoU (logged per shape beside the true IoU).
+        candidates, keep: K samples drawn and how many of the best-scored are averaged (with ``verifier``).
     """
 
     def __init__(self, ckpt: str = DEFAULT, num_samples: int | None = None, surface_level: float | None = None,
-                 mesh_resolution: int | None = None) -> None:
+                 mesh_resolution: int | None = None, verifier: str | None = None, candidates: int = 8,
+                 keep: int = 3) -> None:
         super().__init__()
         self.save_hyperparameters()
         from radar2shape.pretrained import DEFAULT_NAME, SHIPPED_MODELS, load_model, shipped_checkpoint
@@ -85,7 +91,23 @@ class CheckpointModel(ReconstructionModel):
         if mesh_resolution is not None:
             inner.hparams.mesh_resolution = int(mesh_resolution)
         self.inner = inner.requires_grad_(False)
+        self.verifier = None if verifier is None else self._load_verifier(verifier, candidates, keep)
         self._data_spec: RadarSpec | None = None
+
+    def _load_verifier(self, verifier: str, candidates: int, keep: int):
+        from pathlib import Path
+
+        from radar2shape.models.verifier import default_verifier_path, load_verifier
+
+        if getattr(self.inner, "stage1", None) is None:
+            raise UserInputError(f"model.init_args.verifier: {self.ckpt_path} is a {type(self.inner).__name__}; "
+                                 "a verifier chooses among Radar2Shape (RadarDiffusion) samples")
+        if not 1 <= keep <= candidates:
+            raise UserInputError(f"model.init_args.keep: expected 1 to candidates ({candidates}), got {keep}")
+        path = default_verifier_path(Path(self.ckpt_path)) if verifier == "beside" else Path(verifier)
+        if not path.is_file():
+            raise UserInputError(f"model.init_args.verifier: no verifier file {path} (scripts/train_verifier.py)")
+        return load_verifier(path, self.inner.n_levels, candidates).requires_grad_(False)
 
     def setup(self, stage: str) -> None:
         if stage != "test":
@@ -108,7 +130,19 @@ class CheckpointModel(ReconstructionModel):
 
     @torch.no_grad()
     def reconstruct(self, batch: dict) -> list[Reconstruction]:
-        return self.inner.reconstruct(self._model_batch(batch))
+        batch = self._model_batch(batch)
+        if self.verifier is None:
+            return self.inner.reconstruct(batch)
+        from radar2shape.models.verifier import verified_latents
+
+        hp, out = self.hparams, []
+        for i in range(len(batch["radar"])):
+            one = {key: batch[key][i:i + 1] for key in ("radar", "radar_mask")}
+            latents, predicted, kept = verified_latents(self.inner, self.verifier, one, hp.candidates, hp.keep)
+            mesh, _ = self.inner.mean_mesh(latents[kept])
+            out.append(Reconstruction(mesh=self.inner.place_in_heading(mesh, one, 0),
+                                      predicted_iou=float(predicted[kept].mean())))
+        return out
 
     @torch.no_grad()
     def reconstruct_ceiling(self, batch: dict) -> list[Reconstruction] | None:

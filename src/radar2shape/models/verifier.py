@@ -1,7 +1,8 @@
 """A learned verifier over K Stage-2 samples: which candidate to return, and how good it likely is.
 
 Stage 2 draws K latents per radar input, and the best of them is often much better than the first
-(reports/shipped-model/verifier_parts_unseen.md). Re-simulating candidates with PO does not rank
+(reports/shipped-model/verifier_parts_unseen.md,
+reports/real-shipped/verifier_real_test.md). Re-simulating candidates with PO does not rank
 them: a smooth reconstruction's radar differs from the truth's in fine interference whatever its
 IoU. What does rank them is what the model itself says about each candidate:
 
@@ -13,8 +14,10 @@ IoU. What does rank them is what the model itself says about each candidate:
   noised with one shared noise draw at a few noise levels (a Monte-Carlo slice of the
   conditional likelihood; the same draw for every candidate makes the comparison paired).
 
-A small MLP maps these features to the candidate's IoU; the argmax is returned and its predicted
-IoU is a confidence. The shape-level means of the features go in too, so the prediction is
+A small MLP maps these features to the candidate's IoU. The mean SDF of its ``KEEP`` best-scored
+candidates is returned (averaging the few it trusts most beats its single pick: on the real test
+objects by +0.03 IoU, on parts_unseen by +0.002; the reports above), and their mean predicted IoU is
+a confidence. The shape-level means of the features go in too, so the prediction is
 calibrated across inputs, not only within one.
 """
 
@@ -31,6 +34,7 @@ from radar2shape.errors import UserInputError
 PROBE_POINTS = 16384
 NOISE_LEVELS = (0.2, 0.4, 0.6, 0.8)  # fractions of the model's diffusion steps
 FORMAT = "radar2shape-verifier/1"
+KEEP = 3  # best-scored candidates whose mean SDF is returned
 
 
 def probe_points(bound: float, count: int = PROBE_POINTS, seed: int = 0) -> torch.Tensor:
@@ -184,3 +188,19 @@ def score_candidates(model, verifier: Verifier, batch: dict, num_samples: int, s
     tokens = model.encode_radar(batch["radar"].to(model.device), batch["radar_mask"].to(model.device))
     probe = probe_points(float(model.stage1.hparams.bound))
     return latents, verifier(candidate_features(model, tokens, latents, probe))
+
+
+def kept_candidates(predicted: torch.Tensor, keep: int) -> torch.Tensor:
+    """Indices of the ``keep`` candidates with the highest predicted IoU ``[K]``, best first (ties: lower index)."""
+    if not 1 <= keep <= predicted.shape[-1]:
+        raise UserInputError(f"keep: expected 1 to {predicted.shape[-1]} of the K candidates, got {keep}")
+    return torch.argsort(predicted, descending=True, stable=True)[:keep]
+
+
+@torch.no_grad()
+def verified_latents(model, verifier: Verifier, batch: dict, num_samples: int, keep: int = KEEP,
+                     steps: int | None = None, sample_seed: int | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """For a one-input batch: ``(all K latents [K, L, Z], predicted IoUs [K], kept indices [keep])``;
+    the returned shape is the mean SDF of ``latents[kept]``, its confidence ``predicted[kept].mean()``."""
+    latents, predicted = score_candidates(model, verifier, batch, num_samples, steps, sample_seed)
+    return latents, predicted, kept_candidates(predicted, keep)
