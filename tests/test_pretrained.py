@@ -282,21 +282,23 @@ def test_package_data_lists_each_shipped_model_and_card(name):
         assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns), (relative, patterns)
 
 
-def test_shipped_verifier_fits_the_shipped_model_and_is_package_data():
+@pytest.mark.parametrize("name, data", [("parts", "data/parts_unseen"), ("real", "data/real")])
+def test_shipped_verifier_fits_the_shipped_model_and_is_package_data(name, data):
     from radar2shape.geometry.families.folder import sha256_of
     from radar2shape.models.verifier import default_verifier_path, load_verifier
 
-    path = default_verifier_path(SHIPPED)
+    shipped = SHIPPED_FILES[name]
+    path = default_verifier_path(shipped)
     if not path.is_file():
         pytest.skip(f"no shipped verifier at {path} (scripts/train_verifier.py writes one)")
     patterns = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["radar2shape"]
     relative = path.relative_to(REPO_ROOT / "src" / "radar2shape").as_posix()
     assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns), patterns
-    model = load_model(SHIPPED)
+    model = load_model(shipped)
     verifier = load_verifier(path, model.n_levels)  # its features are this model's (else one clear error)
     about = torch.load(path, map_location="cpu", weights_only=True)["about"]
-    assert about["checkpoint"] == SHIPPED.name and about["data"] == "data/parts_unseen"
-    assert about["checkpoint_sha256"] == sha256_of(SHIPPED)  # trained on this model's samples
+    assert about["checkpoint"] == shipped.name and about["data"] == data
+    assert about["checkpoint_sha256"] == sha256_of(shipped)  # trained on this model's samples
     assert (REPO_ROOT / about["report"]).is_file()  # the report that scores it is committed
     assert path.stat().st_size < 100_000 and not verifier.training
 

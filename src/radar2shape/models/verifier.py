@@ -199,7 +199,8 @@ def kept_candidates(predicted: torch.Tensor, keep: int) -> torch.Tensor:
 
 @torch.no_grad()
 def verified_latents(model, verifier: Verifier, batch: dict, num_samples: int, keep: int = KEEP,
-                     steps: int | None = None, sample_seed: int | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+                     steps: int | None = None, sample_seed: int | None = None,
+                     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """For a one-input batch: ``(all K latents [K, L, Z], predicted IoUs [K], kept indices [keep])``;
     the returned shape is the mean SDF of ``latents[kept]``, its confidence ``predicted[kept].mean()``."""
     latents, predicted = score_candidates(model, verifier, batch, num_samples, steps, sample_seed)
