@@ -228,6 +228,7 @@ REAL_REPORT = TABLE1_REAL_LONG
 PER_CLASS_MODEL = "Radar2Shape (real model, shipped)"  # its column in the report's per_class.md
 NEAR_DUPLICATES_REAL = Path("reports/real/near_duplicates.md")
 REAL_ON_PARTS = Path("reports/real-model-on-parts")  # grid real-model-on-parts: this model on the parts test split
+REAL_VERIFIER = Path("reports/real-verifier")  # grid real-verifier: this model returning its verifier's best 3 of 8
 
 
 def _real_split_sizes(root: Path) -> tuple[int, int]:
@@ -248,8 +249,10 @@ def _real_rows(root: Path) -> tuple[list[str], dict[str, list[dict]]]:
     keys = ("iou", "chamfer_l2_x1e3", "fscore_1pct", "radar_dependence_iou", "ceiling_iou")
     lines, per_shape = [], {}
     for obs in OBSERVABILITY:
-        for title, name in (("this model", f"{REAL_TEST}-{obs}-seed0"), ("radar lookup", f"nearest-{obs}")):
-            rows = read_scores(root / REAL_REPORT / "scores" / f"{name}.csv")
+        for title, scores in (("this model", REAL_REPORT / "scores" / f"{REAL_TEST}-{obs}-seed0.csv"),
+                              ("this model, `--candidates 8`", REAL_VERIFIER / "scores" / f"real_verifier3-{obs}.csv"),
+                              ("radar lookup", REAL_REPORT / "scores" / f"nearest-{obs}.csv")):
+            rows = read_scores(root / scores)
             m = pooled(rows, keys)
             ceiling = m.get("ceiling_iou_mean", math.nan)
             lines.append(f"| {obs} | {title} | {m['iou_mean']:.3f} | {m['chamfer_l2_x1e3_mean']:.2f} | "
@@ -314,7 +317,9 @@ def real_model_card(root: Path, checkpoint: Path) -> str:
         "## Measured scores",
         f"On the {n_test} real test objects ([report]({link(report_md.relative_to(root))}), paired differences in "
         f"[paired.md]({link(REAL_REPORT / 'paired.md')})), beside a radar lookup (the training object whose "
-        "radar is nearest); radar dependence: own radar minus another object's; ceiling: its Stage 1 decoding "
+        "radar is nearest); `--candidates 8`: the mean of the 3 of 8 samples its verifier scores best, as "
+        f"`reconstruct --candidates 8` returns ([real-verifier]({link(REAL_VERIFIER / 'real-verifier.md')})); "
+        "radar dependence: own radar minus another object's; ceiling: its Stage 1 decoding "
         "the true shapes; partial: 70 % of the cells masked:", "",
         "| observability | model | IoU ↑ | CD x10^3 ↓ | F@1% ↑ | radar dependence Δ IoU | Stage-1 ceiling IoU | shapes |",
         "|---|---|---|---|---|---|---|---|",

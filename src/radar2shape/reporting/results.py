@@ -220,6 +220,19 @@ def table1_real_front(root: Path) -> str:
         f"per class: [per_class.md]({link(TABLE1_REAL_FRONT / 'per_class.md')}).")
 
 
+REAL_VERIFIER = Path("reports/real-verifier")
+
+
+def real_verifier(root: Path) -> str:
+    """The shipped real model returning its verifier's choice among 8 samples, as ``reconstruct --candidates 8``."""
+    return paired_section(
+        root, REAL_VERIFIER, "Real targets, the verifier's choice among 8 samples", lambda:
+        "The shipped real model as `reconstruct --candidates 8` runs it: 8 samples per object, the mean SDF of the "
+        "3 its verifier scores best (or its single best), against one sample scored the same way; the verifier "
+        "was fitted on the model's samples of the training objects (docs/metrics.md, \"Choosing among K samples\"). "
+        f"Paired: [paired.md]({link(REAL_VERIFIER / 'paired.md')}).")
+
+
 def table1_tiny(root: Path) -> str:
     rows = read_table(root / "reports/table1/table1.csv")
     groups = {"full": "full", "partial": "partial", "full-sbr": "full, PO-SBR", "partial-sbr": "partial, PO-SBR"}
@@ -261,7 +274,7 @@ def results_page(root: Path) -> str:
              "says which grid produced it (`make sweep GRID=...` reruns it).", "",
              table1_medium(root), table1_medium_stage2(root), table1_real(root), table1_real_long(root),
              table1_real_s1long(root), table1_real_seeds(root), table1_real_heading(root),
-             table1_real_front(root), table1_tiny(root), table2_medium(root), monocone(root)]
+             table1_real_front(root), real_verifier(root), table1_tiny(root), table2_medium(root), monocone(root)]
     return "\n".join(p for p in parts if p).rstrip() + "\n"
 
 

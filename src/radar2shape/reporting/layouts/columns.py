@@ -57,6 +57,8 @@ MODEL_TITLES = {
     "mean_shape": "Mean shape",
     "shipped": "Radar2Shape, shipped parts-only model (not trained here)",
     "real_model": "Radar2Shape, shipped real-target model (not trained here)",
+    "real_verifier3": "Radar2Shape, shipped real-target model, mean of its verifier's best 3 of 8 samples",
+    "real_verifier1": "Radar2Shape, shipped real-target model, its verifier's best of 8 samples",
     "radar2shape_lora": "Radar2Shape + LoRA (PO-SBR fine-tuned)",
 }
 
