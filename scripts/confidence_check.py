@@ -13,7 +13,8 @@ observability, and the per-shape values.
     python scripts/confidence_check.py --scores reports/GRID/scores/RUN.csv ... --out REPORT.md
 
 reads the same from per-shape score files of runs whose evaluator had the ``ConsistencyScorer``
-(columns ``iou`` and ``radar_consistency``) instead of running a model.
+(columns ``iou`` and ``radar_consistency``) instead of running a model, and the verifier's predicted IoU
+where the run logged one (column ``predicted_iou``: ``CheckpointModel`` with a verifier).
 """
 
 from __future__ import annotations
@@ -42,28 +43,36 @@ def parse_args(argv):
     return args
 
 
+CONFIDENCES = {"radar_consistency": "consistency", "predicted_iou": "predicted IoU"}  # score column: its name
+
+
 def from_scores(paths: list[Path], out: Path) -> int:
-    """The Spearman correlation of logged consistency with IoU, per score file."""
+    """The Spearman correlation with IoU of each logged confidence (radar consistency, a verifier's
+    predicted IoU), per score file."""
     import csv
 
     from scipy.stats import spearmanr
 
     from radar2shape.atomic import write_text_atomic
 
-    lines = ["# Radar consistency against IoU, from per-shape test scores", ""]
+    lines = ["# Confidence against IoU, from per-shape test scores", ""]
     for path in paths:
         if not path.is_file():
             raise SystemExit(f"error: {path}: not found (expected a per-shape score file, scores/<run>.csv)")
         with path.open() as handle:
             rows = list(csv.DictReader(handle))
-        if not rows or "radar_consistency" not in rows[0]:
-            raise SystemExit(f"error: {path}: no radar_consistency column (test the run with the ConsistencyScorer)")
-        pairs = [(float(r["radar_consistency"]), float(r["iou"])) for r in rows]
-        pairs = [p for p in pairs if all(np.isfinite(p))]
-        rho, p = spearmanr(*zip(*pairs))
-        lines.append(f"- `{path}`: Spearman(consistency, IoU) = {rho:+.3f} (p = {p:.2g}) over {len(pairs)} shapes; "
-                     f"mean IoU {np.mean([b for _, b in pairs]):.3f}, mean consistency {np.mean([a for a, _ in pairs]):.3f}")
-        print(lines[-1])
+        present = [column for column in CONFIDENCES if rows and column in rows[0]]
+        if not present:
+            raise SystemExit(f"error: {path}: no radar_consistency or predicted_iou column (test the run with the "
+                             "ConsistencyScorer, or a model with a verifier)")
+        for column in present:
+            pairs = [(float(r[column]), float(r["iou"])) for r in rows]
+            pairs = [p for p in pairs if all(np.isfinite(p))]
+            rho, p = spearmanr(*zip(*pairs))
+            name = CONFIDENCES[column]
+            lines.append(f"- `{path}`: Spearman({name}, IoU) = {rho:+.3f} (p = {p:.2g}) over {len(pairs)} shapes; "
+                         f"mean IoU {np.mean([b for _, b in pairs]):.3f}, mean {name} {np.mean([a for a, _ in pairs]):.3f}")
+            print(lines[-1])
     write_text_atomic(out, "\n".join(lines + ["", "`scripts/confidence_check.py --scores`", ""]))
     print(f"wrote {out}")
     return 0

@@ -112,11 +112,16 @@ def test_confidence_from_scores_is_spearman_over_defined_shapes(tmp_path):
     out = tmp_path / "confidence.md"
     assert confidence_check.main(["--scores", str(scores), "--out", str(out)]) == 0
     assert "Spearman(consistency, IoU) = -0.800" in out.read_text() and "over 4 shapes" in out.read_text()
+    verified = tmp_path / "verified.csv"  # a verifier's predicted IoU: ranks 3, 2, 1, 4 against IoU 4, 3, 1, 2
+    verified.write_text("index,iou,predicted_iou\n0,0.9,0.3\n1,0.8,0.2\n2,0.1,0.1\n3,0.2,0.4\n")
+    assert confidence_check.main(["--scores", str(verified), "--out", str(out)]) == 0
+    assert "Spearman(predicted IoU, IoU) = +0.400" in out.read_text()  # 1 - 6 * (1 + 1 + 0 + 4) / 60
     plain = tmp_path / "plain.csv"
     plain.write_text("index,iou\n0,0.5\n")
     with pytest.raises(SystemExit) as exc:
         confidence_check.main(["--scores", str(plain), "--out", str(tmp_path / "x.md")])
-    assert str(exc.value).startswith(f"error: {plain}: no radar_consistency column") and not (tmp_path / "x.md").exists()
+    assert str(exc.value).startswith(f"error: {plain}: no radar_consistency or predicted_iou column")
+    assert not (tmp_path / "x.md").exists()
 
 
 def test_real_paired_script_names_a_grid_without_scores():
