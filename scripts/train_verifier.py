@@ -212,6 +212,8 @@ def main(argv=None) -> int:
         scored["mean_of_k"] = mesh_iou(model, latents, item)
         for m in TOP:  # the mean SDF of the verifier's m best-scored candidates
             scored[f"verifier_top{m}"] = mesh_iou(model, latents[kept_candidates(predicted, m)], item)
+        consensus = entry["features"][:, consensus_column]  # the same averaging without learning
+        scored[f"consensus_top{KEEP}"] = mesh_iou(model, latents[kept_candidates(consensus, KEEP)], item)
         rows.append({"record": dm.records(eval_split).record_ids[i],
                      "class": dm.class_names[dm.manifest["labels"][eval_split][i]],
                      **{f"iou_{rule}": value for rule, value in scored.items()},
@@ -234,7 +236,8 @@ def main(argv=None) -> int:
                            for n, name in enumerate(names) if not name.startswith(("mean_", "log_mean", "log_denoise_0"))]
 
     first = column("iou_first")
-    rules = ["first", "mean_of_k", "consensus", "verifier", *(f"verifier_top{m}" for m in TOP), "oracle"]
+    rules = ["first", "mean_of_k", "consensus", f"consensus_top{KEEP}", "verifier", *(f"verifier_top{m}" for m in TOP),
+             "oracle"]
     lines = [f"# Choosing among K = {args.candidates} Stage-2 samples: {args.ckpt}", "",
              f"{trained} of `{args.data}`, full observability; every IoU below meshed and scored as the "
              "evaluator does, paired by shape (gain: mean and standard error of the per-shape difference).", "",
