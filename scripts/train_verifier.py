@@ -254,8 +254,11 @@ def main(argv=None) -> int:
     rho_cons, p_cons = spearmanr(column("mean_consensus"), chosen)
     rho_kept, p_kept = spearmanr(column(f"predicted_iou_top{KEEP}"), column(f"iou_verifier_top{KEEP}"))
     gap = column("iou_oracle").mean() - first.mean()
+    learned = column(f"iou_verifier_top{KEEP}") - column(f"iou_consensus_top{KEEP}")
     lines += ["", f"- share of the first-to-oracle gap the verifier closes: "
               f"{(chosen.mean() - first.mean()) / gap:.0%}" if gap > 0 else "- no gap between first sample and oracle",
+              f"- what the learning adds: the verifier's best {KEEP} against the {KEEP} most agreed-with candidates "
+              f"(both averaged), paired: {learned.mean():+.3f} ± {learned.std(ddof=1) / np.sqrt(len(learned)):.3f}",
               f"- confidence: Spearman(predicted IoU, IoU of the returned shape) = {rho_pred:+.3f} (p = {p_pred:.2g}); "
               f"Spearman(mean consensus of the K samples, IoU) = {rho_cons:+.3f} (p = {p_cons:.2g}); what "
               f"`reconstruct --candidates` returns by default (the mean of the best {KEEP}): Spearman(their mean "
