@@ -141,3 +141,14 @@ def test_scores_follow_the_verifier_on_the_models_own_samples(model):
     volume = (model.sdf_function(samples)(probe_points(float(model.stage1.hparams.bound))) < 0).float().mean(1)
     assert index == int(volume.argmax())
 
+
+
+def test_kept_candidates_are_the_best_scored_first_ties_by_index():
+    from radar2shape.models.verifier import kept_candidates
+
+    predicted = torch.tensor([0.2, 0.7, 0.5, 0.7, 0.1])
+    assert kept_candidates(predicted, 3).tolist() == [1, 3, 2]  # 0.7 twice: the lower index first
+    assert kept_candidates(predicted, 1).tolist() == [1] and kept_candidates(predicted, 5).tolist() == [1, 3, 2, 0, 4]
+    for keep in (0, 6):
+        with pytest.raises(UserInputError, match=f"keep: expected 1 to 5 of the K candidates, got {keep}"):
+            kept_candidates(predicted, keep)

@@ -222,7 +222,8 @@ def _check_arguments(args: argparse.Namespace) -> list[Path]:
             least = "an integer >= 2" if name in ("resolution", "candidates") else "a positive integer"
             raise UserInputError(f"--{name}: expected {least}, got {value}")
     if args.candidates is not None and args.samples is not None:
-        raise UserInputError("--candidates returns one verified sample, --samples the mean of K: use one of them")
+        raise UserInputError("--candidates returns what the verifier scores best of K, --samples the mean of all K: "
+                             "use one of them")
     for name in ("verifier", "keep"):
         if getattr(args, name) is not None and args.candidates is None:
             raise UserInputError(f"--{name} is read with --candidates K; add --candidates")
