@@ -25,7 +25,9 @@ and scored on the first ``--eval-shapes`` of ``S`` (for a model trained on a dat
 fit on what is left to it, score on the test split the evaluator uses). ``--turns T`` adds, per
 fit record, T - 1 copies turned about the aspect axis by a random whole number of roll steps and
 mirrored half the time (exact: ``data_modules.augment``), so the verifier sees each object in
-headings the stored radar does not show.
+headings the stored radar does not show. ``--observability partial`` collects the samples from
+masked radar (the fit split's records under random windows, the scored split's under the
+evaluator's mask; ``--mask-rule``), in a cache of its own.
 """
 
 from __future__ import annotations
@@ -49,6 +51,11 @@ def parse_args(argv):
                         "last records of --split")
     parser.add_argument("--turns", type=int, default=1, help="views per fit record: the stored heading and "
                         "T - 1 exact whole-step turns (default 1)")
+    parser.add_argument("--observability", choices=["full", "partial"], default="full",
+                        help="radar as the DataModule serves it: partial masks the fit split's records with random "
+                        "windows and the scored split's as the evaluator does (default full; use its own --cache)")
+    parser.add_argument("--mask-rule", choices=["cells", "per_axis"], default="cells",
+                        help="the partial mask (data_modules.ShapeDataModule; default cells, the protocol's)")
     parser.add_argument("--verifier", type=Path, help="score this trained verifier instead of fitting one")
     parser.add_argument("--fit-shapes", type=int, default=300)
     parser.add_argument("--eval-shapes", type=int, default=100)
@@ -160,7 +167,8 @@ def main(argv=None) -> int:
     model = load_model(args.ckpt)
     split, eval_split = args.split, args.eval_split or args.split
     sampled = {"surface": 0, "sdf": 0, "eval": 30000, "occ": 100000}
-    dm = ShapeDataModule(root=str(args.data), observability="full", points={split: sampled, eval_split: sampled})
+    dm = ShapeDataModule(root=str(args.data), observability=args.observability, mask_rule=args.mask_rule,
+                         points={split: sampled, eval_split: sampled})
     n, n_eval = len(dm.records(split)), len(dm.records(eval_split))
     if args.turns < 1:
         raise SystemExit(f"error: --turns: expected a positive integer, got {args.turns}")
@@ -239,7 +247,7 @@ def main(argv=None) -> int:
     rules = ["first", "mean_of_k", "consensus", f"consensus_top{KEEP}", "verifier", *(f"verifier_top{m}" for m in TOP),
              "oracle"]
     lines = [f"# Choosing among K = {args.candidates} Stage-2 samples: {args.ckpt}", "",
-             f"{trained} of `{args.data}`, full observability; every IoU below meshed and scored as the "
+             f"{trained} of `{args.data}`, {args.observability} observability; every IoU below meshed and scored as the "
              "evaluator does, paired by shape (gain: mean and standard error of the per-shape difference).", "",
              "| returned shape | IoU | gain over first sample | gain over K-sample mean |", "|---|---|---|---|"]
     mean_k = column("iou_mean_of_k")
@@ -281,7 +289,8 @@ def main(argv=None) -> int:
     if args.out and args.verifier is None:
         save_verifier(verifier, args.out, model.n_levels,
                       {"checkpoint": args.ckpt.name, "checkpoint_sha256": sha256_of(args.ckpt),  # the exact model whose samples trained it
-                       "data": str(args.data), "split": split, "fit_shapes": args.fit_shapes, "turns": args.turns,
+                       "data": str(args.data), "split": split, "observability": args.observability,
+                       "fit_shapes": args.fit_shapes, "turns": args.turns,
                        "candidates": args.candidates, "report": str(args.report)})
         print(f"wrote {args.out}")
     return 0
