@@ -14,7 +14,7 @@ from pathlib import Path
 
 from radar2shape.reporting.cells import pooled, read_scores
 from radar2shape.reporting.pages import (GENERATED, OBSERVABILITY, TABLE1_MEDIUM, TABLE1_MEDIUM_STAGE2, TABLE1_REAL,
-                                         TABLE1_REAL_LONG, link)
+                                         TABLE1_REAL_LONG, REAL_VERIFIER, link)
 
 MODEL_CARD = Path("docs/model_card.md")
 PACKAGED_CARD = Path("src/radar2shape/weights/MODEL_CARD.md")  # what `reconstruct --about` prints
@@ -228,7 +228,6 @@ REAL_REPORT = TABLE1_REAL_LONG
 PER_CLASS_MODEL = "Radar2Shape (real model, shipped)"  # its column in the report's per_class.md
 NEAR_DUPLICATES_REAL = Path("reports/real/near_duplicates.md")
 REAL_ON_PARTS = Path("reports/real-model-on-parts")  # grid real-model-on-parts: this model on the parts test split
-REAL_VERIFIER = Path("reports/real-verifier")  # grid real-verifier: this model returning its verifier's best 3 of 8
 
 
 def _real_split_sizes(root: Path) -> tuple[int, int]:

@@ -12,6 +12,7 @@ TABLE1_MEDIUM = Path("reports/table1-medium")
 TABLE1_MEDIUM_STAGE2 = Path("reports/table1-medium-stage2")
 TABLE1_REAL = Path("reports/table1-real")
 TABLE1_REAL_LONG = Path("reports/table1-real-long")
+REAL_VERIFIER = Path("reports/real-verifier")  # grid real-verifier: the real model with its verifier
 
 
 def link(path: Path) -> str:

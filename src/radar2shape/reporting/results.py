@@ -17,7 +17,7 @@ from pathlib import Path
 from radar2shape.reporting.model_cards import (MODEL_CARD, PACKAGED_CARD, PACKAGED_REAL_CARD, REAL_CARD, model_card,
                                                real_model_card)
 from radar2shape.reporting.pages import (GENERATED, OBSERVABILITY, REPO_ROOT, TABLE1_MEDIUM, TABLE1_MEDIUM_STAGE2,
-                                         TABLE1_REAL, TABLE1_REAL_LONG, link)
+                                         TABLE1_REAL, TABLE1_REAL_LONG, REAL_VERIFIER, link)
 from radar2shape.reporting.tables import Column, markdown_table
 
 RESULTS_PAGE = Path("docs/results.md")
@@ -218,9 +218,6 @@ def table1_real_front(root: Path) -> str:
         "\"Objects in any heading\"); otherwise the shipped real model's recipes. Paired with the shipped real "
         f"model, the model with every class canonical and the lookup: [paired.md]({link(TABLE1_REAL_FRONT / 'paired.md')}); "
         f"per class: [per_class.md]({link(TABLE1_REAL_FRONT / 'per_class.md')}).")
-
-
-REAL_VERIFIER = Path("reports/real-verifier")
 
 
 def real_verifier(root: Path) -> str:
