@@ -231,6 +231,7 @@ def real_verifier(root: Path) -> str:
 
 
 TABLE1_MEDIUM_PARTIAL_VERIFIER = Path("reports/table1-medium-partial-verifier")
+VERIFIED_PARTIAL = "Radar2Shape, Stage 2 for 200 epochs, mean of its verifier's best 3 of 8 samples"
 
 
 def table1_medium_partial_verifier(root: Path) -> str:
@@ -294,9 +295,12 @@ def readme_block(root: Path) -> str:
     rows = read_table(root / TABLE1_MEDIUM / "table1-medium.csv")
     longer = read_table(root / TABLE1_MEDIUM_STAGE2 / "table1-medium-stage2.csv")
     first = [i for i, (title, _) in enumerate(rows) if title == "Radar2Shape"][:1]
+    verifier_table = root / TABLE1_MEDIUM_PARTIAL_VERIFIER / "table1-medium-partial-verifier.csv"
+    verified = [(t, m) for t, m in read_table(verifier_table) if t == VERIFIED_PARTIAL] if verifier_table.is_file() else []
+    longer = longer + verified
     rows = rows[: first[0] + 1] + longer + rows[first[0] + 1:] if first else rows + longer
     keep = ("Radar2Shape", "Radar2Shape, Stage 2 for 200 epochs", "Radar2Shape, Stage 2 for 200 epochs, mean of 8 samples",
-            "Diffusion-SDF", "TMNet", "LIST", "Nearest neighbour", "Mean shape")
+            VERIFIED_PARTIAL, "Diffusion-SDF", "TMNet", "LIST", "Nearest neighbour", "Mean shape")
     table = markdown_table([(t, m) for t, m in rows if t in keep],
                            columns(OBSERVABILITY, [("iou", "IoU ↑", True, 3, "std"), ("fscore_1pct", "F@1% ↑", True, 3, "std")]))
     return "\n".join([README_BEGIN, table, README_END])
