@@ -59,6 +59,9 @@ MODEL_TITLES = {
     "shipped": "Radar2Shape, shipped parts-only model (not trained here)",
     "real_model": "Radar2Shape, shipped real-target model (not trained here)",
     "real_verifier3": "Radar2Shape, shipped real-target model, mean of its verifier's best 3 of 8 samples",
+    "radar2shape_cfg1": "Radar2Shape, real model fine-tuned with condition dropout, no guidance",
+    "radar2shape_cfg2": "Radar2Shape, real model fine-tuned with condition dropout, guidance 2",
+    "radar2shape_cfg3": "Radar2Shape, real model fine-tuned with condition dropout, guidance 3",
     "real_verifier1": "Radar2Shape, shipped real-target model, its verifier's best of 8 samples",
     "radar2shape_lora": "Radar2Shape + LoRA (PO-SBR fine-tuned)",
 }
