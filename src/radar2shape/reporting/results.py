@@ -18,6 +18,7 @@ from radar2shape.reporting.model_cards import (MODEL_CARD, PACKAGED_CARD, PACKAG
                                                real_model_card)
 from radar2shape.reporting.pages import (GENERATED, OBSERVABILITY, REPO_ROOT, TABLE1_MEDIUM, TABLE1_MEDIUM_STAGE2,
                                          TABLE1_REAL, TABLE1_REAL_LONG, REAL_VERIFIER, link)
+from radar2shape.reporting.layouts.columns import MODEL_TITLES
 from radar2shape.reporting.tables import Column, markdown_table
 
 RESULTS_PAGE = Path("docs/results.md")
@@ -226,12 +227,12 @@ def real_verifier(root: Path) -> str:
         root, REAL_VERIFIER, "Real targets, the verifier's choice among 8 samples", lambda:
         "The shipped real model as `reconstruct --candidates 8` runs it: 8 samples per object, the mean SDF of the "
         "3 its verifier scores best (or its single best), against one sample scored the same way; the verifier "
-        "was fitted on the model's samples of the training objects (docs/metrics.md, \"Choosing among K samples\"). "
+        "was fitted on the model's samples of the training objects (docs/metrics.md, \"Choosing among K samples: the verifier\"). "
         f"Paired: [paired.md]({link(REAL_VERIFIER / 'paired.md')}).")
 
 
 TABLE1_MEDIUM_PARTIAL_VERIFIER = Path("reports/table1-medium-partial-verifier")
-VERIFIED_PARTIAL = "Radar2Shape, Stage 2 for 200 epochs, mean of its verifier's best 3 of 8 samples"
+VERIFIED_PARTIAL = MODEL_TITLES["radar2shape_long_v3of8"]  # the README's row of that report
 
 
 def table1_medium_partial_verifier(root: Path) -> str:
@@ -241,7 +242,7 @@ def table1_medium_partial_verifier(root: Path) -> str:
         "The three 200-epoch partial-observability Stage-2 fits (table1-medium-stage2, refitted) as "
         "`reconstruct --candidates 8` runs them: 8 samples per masked input, the mean SDF of the 3 a verifier "
         "scores best, the verifier fitted on each model's samples of 300 masked shapes of a fresh seed of the "
-        "family (docs/metrics.md, \"Choosing among K samples\"); beside them each model's one sample under the same "
+        "family (docs/metrics.md, \"Choosing among K samples: the verifier\"); beside them each model's one sample under the same "
         f"masks. Paired per seed: [paired.md]({link(TABLE1_MEDIUM_PARTIAL_VERIFIER / 'paired.md')}).")
 
 
@@ -284,8 +285,8 @@ def monocone(root: Path) -> str:
 def results_page(root: Path) -> str:
     parts = ["# Results", "", GENERATED + " Every table links the report it comes from; each report "
              "says which grid produced it (`make sweep GRID=...` reruns it).", "",
-             table1_medium(root), table1_medium_stage2(root), table1_medium_partial_verifier(root), table1_real(root), table1_real_long(root),
-             table1_real_s1long(root), table1_real_seeds(root), table1_real_heading(root),
+             table1_medium(root), table1_medium_stage2(root), table1_medium_partial_verifier(root), table1_real(root),
+             table1_real_long(root), table1_real_s1long(root), table1_real_seeds(root), table1_real_heading(root),
              table1_real_front(root), real_verifier(root), table1_tiny(root), table2_medium(root), monocone(root)]
     return "\n".join(p for p in parts if p).rstrip() + "\n"
 
