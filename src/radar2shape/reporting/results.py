@@ -227,7 +227,8 @@ def real_verifier(root: Path) -> str:
         root, REAL_VERIFIER, "Real targets, the verifier's choice among 8 samples", lambda:
         "The shipped real model as `reconstruct --candidates 8` runs it: 8 samples per object, the mean SDF of the "
         "3 its verifier scores best (or its single best), against one sample scored the same way; the verifier "
-        "was fitted on the model's samples of the training objects (docs/metrics.md, \"Choosing among K samples: the verifier\"). "
+        "was fitted on the model's samples of the training objects (docs/metrics.md, \"Choosing among K samples: "
+        "the verifier\"). "
         f"Paired: [paired.md]({link(REAL_VERIFIER / 'paired.md')}).")
 
 
@@ -242,8 +243,8 @@ def table1_medium_partial_verifier(root: Path) -> str:
         "The three 200-epoch partial-observability Stage-2 fits (table1-medium-stage2, refitted) as "
         "`reconstruct --candidates 8` runs them: 8 samples per masked input, the mean SDF of the 3 a verifier "
         "scores best, the verifier fitted on each model's samples of 300 masked shapes of a fresh seed of the "
-        "family (docs/metrics.md, \"Choosing among K samples: the verifier\"); beside them each model's one sample under the same "
-        f"masks. Paired per seed: [paired.md]({link(TABLE1_MEDIUM_PARTIAL_VERIFIER / 'paired.md')}).")
+        "family (docs/metrics.md, \"Choosing among K samples: the verifier\"); beside them each model's one "
+        f"sample under the same masks. Paired per seed: [paired.md]({link(TABLE1_MEDIUM_PARTIAL_VERIFIER / 'paired.md')}).")
 
 
 def table1_tiny(root: Path) -> str:
