@@ -32,6 +32,14 @@ SETTINGS = {
         ("fast, 512 encoder points, 1,024 SDF", {}, {"surface": 512, "sdf": 1024}, "bf16", 16),
         ("fast, 512 encoder points, 512 SDF", {}, {"surface": 512, "sdf": 512}, "bf16", 16),
         ("fast, batch 32", {}, {"surface": 1024, "sdf": 2048}, "bf16", 32),
+        ("512 / 1,024, batch 32", {}, {"surface": 512, "sdf": 1024}, "bf16", 32),
+        ("512 / 1,024, U-Net 8 channels", {"unet_channels": 8}, {"surface": 512, "sdf": 1024}, "bf16", 16),
+        ("512 / 1,024, U-Net depth 2", {"unet_max_depth": 2}, {"surface": 512, "sdf": 1024}, "bf16", 16),
+        ("512 / 1,024, point width 16", {"width": 16}, {"surface": 512, "sdf": 1024}, "bf16", 16),
+        ("512 / 1,024, SDF MLP 32 wide", {"mlp_hidden": 32}, {"surface": 512, "sdf": 1024}, "bf16", 16),
+        ("512 / 1,024, U-Net 8 channels, depth 2", {"unet_channels": 8, "unet_max_depth": 2},
+         {"surface": 512, "sdf": 1024}, "bf16", 16),
+        ("512 / 1,024, U-Net 8 channels, batch 32", {"unet_channels": 8}, {"surface": 512, "sdf": 1024}, "bf16", 32),
     ],
     "stage2": [
         ("table1-medium", {}, None, "reference", 16),
@@ -40,6 +48,9 @@ SETTINGS = {
         ("fast, batch 32", STEM2, None, "fast", 32),
         ("fast, batch 32, bfloat16", STEM2, None, "bf16", 32),
         ("fast, ResNet width 1/8", {**STEM2, "encoder_width": 0.125}, None, "fast", 16),
+        ("fast, batch 64", STEM2, None, "fast", 64),
+        ("fast, batch 32, ResNet width 1/8", {**STEM2, "encoder_width": 0.125}, None, "fast", 32),
+        ("fast, batch 32, ResNet width 1/8, bfloat16", {**STEM2, "encoder_width": 0.125}, None, "bf16", 32),
     ],
 }
 

@@ -163,7 +163,7 @@ GRID_RUNS = {"stage1": "radar2shape_stage1", "stage2": "radar2shape-full-seed0"}
 
 def grid_settings(grid: str, name: str) -> dict:
     """What ``grid``'s run of stage ``name`` trains with: ``model_args`` (its ``model.init_args``
-    overrides), ``points`` (its training points per shape) and ``bf16`` (the cpu_bf16 layer)."""
+    overrides), ``points`` (its training points per shape), ``bf16`` (the cpu_bf16 layer) and ``batch``."""
     from radar2shape.sweep import load_grid
 
     run = next(r for r in load_grid(grid).runs if r.name == GRID_RUNS[name])
@@ -171,23 +171,28 @@ def grid_settings(grid: str, name: str) -> dict:
     model_args = {k.removeprefix(prefix): v for k, v in run.overrides.items()
                   if k.startswith(prefix) and k != prefix + "stage1_ckpt"}
     bf16 = "conf/trainer/cpu_bf16.yaml" in run.configs or run.overrides.get("trainer.precision") == "bf16-mixed"
-    return {"model_args": model_args, "points": run.overrides.get("data.init_args.points.train"), "bf16": bf16}
+    return {"model_args": model_args, "points": run.overrides.get("data.init_args.points.train"), "bf16": bf16,
+            "batch": int(run.overrides.get("data.init_args.batch_size", BATCH))}
 
 
 def compare_grids(names: list[str], grids: list[str], device: torch.device, rounds: int, steps: int) -> None:
     """Shapes/s of each stage as ``grids[0]`` trains it (reference kernels: the committed rows) against
-    ``grids[1]`` (current kernels, its points, model options and precision), in one run."""
+    ``grids[1]`` (current kernels, its points, model options, precision and batch), in one run."""
     print(f"grid settings: {grids[0]} (reference kernels) against {grids[1]} (shapes/s: wall | per CPU-second)")
     for name in [n for n in names if n in GRID_RUNS]:
-        runners = []
+        runners, batches = [], []
         for grid, kernel_path in zip(grids, ("reference", "fast")):
             settings = grid_settings(grid, name)
-            model, batch = to_device(*build(name, model_args=settings["model_args"], points=settings["points"]), device)
+            model, batch = to_device(*build(name, batch=settings["batch"], model_args=settings["model_args"],
+                                            points=settings["points"]), device)
             runners.append(Runner(model, batch, "bf16" if settings["bf16"] else kernel_path))
+            batches.append(settings["batch"])
         timed = [[r.time(steps or STEPS[name]) for r in runners] for _ in range(rounds)]
         (ref_wall, ref_cpu), (new_wall, new_cpu) = (tuple(min(rnd[i][k] for rnd in timed) for k in (0, 1)) for i in (0, 1))
-        print(f"  {name:8s} {grids[0]} {BATCH / ref_wall:6.1f} | {BATCH / ref_cpu:6.1f}   {grids[1]} "
-              f"{BATCH / new_wall:6.1f} | {BATCH / new_cpu:6.1f}   x{ref_wall / new_wall:.2f} wall, x{ref_cpu / new_cpu:.2f} CPU",
+        ref_wall, ref_cpu, new_wall, new_cpu = (ref_wall / batches[0], ref_cpu / batches[0],
+                                                new_wall / batches[1], new_cpu / batches[1])  # seconds per shape
+        print(f"  {name:8s} {grids[0]} {1 / ref_wall:6.1f} | {1 / ref_cpu:6.1f}   {grids[1]} "
+              f"{1 / new_wall:6.1f} | {1 / new_cpu:6.1f}   x{ref_wall / new_wall:.2f} wall, x{ref_cpu / new_cpu:.2f} CPU",
               flush=True)
 
 
@@ -199,7 +204,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=2, help="rounds in which the paths take turns")
     parser.add_argument("--bf16", action="store_true", help="also time the opt-in bfloat16 autocast path")
     parser.add_argument("--device", default="cpu", help="cpu (default) or cuda")
-    parser.add_argument("--grids", nargs=2, default=["table1-medium", "table1-medium-fast"], metavar=("REF", "NEW"),
+    parser.add_argument("--grids", nargs=2, default=["table1-medium", "table1-medium-faster"], metavar=("REF", "NEW"),
                         help="also time Stage 1 and 2 as these two grids train them ('' '': skip)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)

@@ -8,7 +8,8 @@ runs the same command for ``--epochs`` epochs into a temporary folder, and compa
 per-step training value (``train/*_step``) the two logs share. A rerun that matches bit for bit
 says the grid's number is a function of its configuration on this machine; a drift says how far
 threads, library versions or hardware move it. Exit code 0 when every value agrees within
-``--rtol``, 1 when one does not, 2 on bad input. The learning-rate schedule must not depend on
+``--rtol``, 1 when one does not, 2 on bad input. ``--twice`` compares two reruns with each other
+instead of a rerun with the log, for a run whose log was written before a change to the code. The learning-rate schedule must not depend on
 the number of epochs for the comparison to mean anything (the step schedules of the shipped
 configs do not).
 """
@@ -84,18 +85,21 @@ def agrees(rows: list[dict], rtol: float) -> bool:
     return all(r["steps"] and r["max_rel"] <= rtol for r in rows)
 
 
-def markdown(run_dir: Path, args: list[str], epochs: int, threads: int, rows: list[dict], rtol: float) -> str:
+def markdown(run_dir: Path, args: list[str], epochs: int, threads: int, rows: list[dict], rtol: float,
+             twice: bool = False) -> str:
     agree = agrees(rows, rtol)
+    against = "a second rerun" if twice else "its own log"
     lines = [f"# Rerun check: `{run_dir.name}`", "",
              f"The run's recorded fit command, rerun for its first {epochs} epoch(s) with {threads} CPU thread(s) "
-             f"(`python scripts/rerun_check.py --run {run_dir} --epochs {epochs} --threads {threads}`), "
-             "against its own log: every per-step training value both logs hold.", "",
+             f"(`python scripts/rerun_check.py --run {run_dir} --epochs {epochs} --threads {threads}"
+             f"{' --twice' if twice else ''}`), against {against}: every per-step training value both logs hold.", "",
              "```", "radar2shape fit " + " ".join(args), "```", "",
              "| logged value | steps compared | largest abs. difference | largest rel. difference |", "|---|---|---|---|"]
     lines += [f"| `{r['column']}` | {r['steps']} | {r['max_abs']:.3g} | {r['max_rel']:.3g} |" for r in rows]
     verdict = "bit for bit" if agree and all(r["max_abs"] == 0 for r in rows) else (
         f"within rtol {rtol:g}" if agree else f"NOT within rtol {rtol:g}")
-    return "\n".join(lines + ["", f"Verdict: the rerun reproduces the run's training {verdict}.", ""])
+    reproduced = "the second rerun reproduces the first" if twice else "the rerun reproduces the run's training"
+    return "\n".join(lines + ["", f"Verdict: {reproduced} {verdict}.", ""])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -105,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threads", type=int, default=1, help="CPU threads of the rerun (default 1, as the grids)")
     parser.add_argument("--rtol", type=float, default=0.0, help="largest relative difference that agrees (default 0)")
     parser.add_argument("--out", type=Path, help="write the Markdown comparison here (default: print it)")
+    parser.add_argument("--twice", action="store_true", help="compare two reruns with each other, not a rerun with the "
+                        "run's log (a log written before a change to the code)")
     args = parser.parse_args(argv)
     try:
         if args.epochs < 1 or args.threads < 1:
@@ -114,11 +120,14 @@ def main(argv: list[str] | None = None) -> int:
         if not reference:
             raise UserInputError(f"{log}: no train/*_step values in its first {args.epochs} epoch(s)")
         with tempfile.TemporaryDirectory(prefix="rerun_check_") as tmp:
-            rows = compare(reference, step_values(rerun(fit_args, args.epochs, args.threads, Path(tmp)), args.epochs))
+            if args.twice:
+                reference = step_values(rerun(fit_args, args.epochs, args.threads, Path(tmp) / "first"), args.epochs)
+            second = Path(tmp) / "second" if args.twice else Path(tmp)
+            rows = compare(reference, step_values(rerun(fit_args, args.epochs, args.threads, second), args.epochs))
     except (UserInputError, RuntimeError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    text = markdown(args.run, fit_args, args.epochs, args.threads, rows, args.rtol)
+    text = markdown(args.run, fit_args, args.epochs, args.threads, rows, args.rtol, args.twice)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(text)

@@ -1,5 +1,5 @@
-"""scripts/rerun_check.py: a finished toy fit rerun from its run.yaml reproduces its own log, and a
-changed log value is caught."""
+"""scripts/rerun_check.py: a finished toy fit rerun from its run.yaml reproduces its own log, a
+changed log value is caught, and ``--twice`` compares two reruns instead."""
 
 from __future__ import annotations
 
@@ -55,6 +55,9 @@ def test_rerun_reproduces_a_fit_and_catches_a_changed_value(tmp_path, monkeypatc
     assert rerun_check.main(["--run", str(run_dir), "--epochs", "1", "--out", str(out)]) == 1
     assert "NOT within rtol 0" in out.read_text()
     assert rerun_check.main(["--run", str(run_dir), "--epochs", "1", "--rtol", "0.02", "--out", str(out)]) == 0
+    # --twice compares two reruns with each other: the changed log no longer enters
+    assert rerun_check.main(["--run", str(run_dir), "--epochs", "1", "--twice", "--out", str(out)]) == 0
+    assert "the second rerun reproduces the first bit for bit" in out.read_text()
 
 
 def test_a_folder_that_is_not_a_fitted_run_is_one_error_line(tmp_path, capsys):

@@ -12,11 +12,15 @@ spec.loader.exec_module(bench)
 
 
 @pytest.mark.parametrize("grid, stage, expected", [
-    ("table1-medium", "stage1", {"model_args": {}, "points": {"surface": 2048, "sdf": 2048}, "bf16": False}),
-    ("table1-medium", "stage2", {"model_args": {}, "points": None, "bf16": False}),
+    ("table1-medium", "stage1", {"model_args": {}, "points": {"surface": 2048, "sdf": 2048}, "bf16": False, "batch": 16}),
+    ("table1-medium", "stage2", {"model_args": {}, "points": None, "bf16": False, "batch": 16}),
     ("table1-medium-fast", "stage1",
-     {"model_args": {"lr_decay_steps": 500}, "points": {"surface": 1024, "sdf": 2048}, "bf16": True}),
-    ("table1-medium-fast", "stage2", {"model_args": {"encoder_stem_stride": 2}, "points": None, "bf16": False}),
+     {"model_args": {"lr_decay_steps": 500}, "points": {"surface": 1024, "sdf": 2048}, "bf16": True, "batch": 16}),
+    ("table1-medium-fast", "stage2", {"model_args": {"encoder_stem_stride": 2}, "points": None, "bf16": False, "batch": 16}),
+    ("table1-medium-faster", "stage1", {"model_args": {"lr_decay_steps": 500, "unet_channels": 8},
+                                        "points": {"surface": 512, "sdf": 1024}, "bf16": True, "batch": 32}),
+    ("table1-medium-faster", "stage2", {"model_args": {"encoder_stem_stride": 2, "encoder_width": 0.125},
+                                        "points": None, "bf16": True, "batch": 32}),
 ])
 def test_grid_settings_are_the_grids_own(grid, stage, expected, monkeypatch):
     monkeypatch.chdir(REPO)

@@ -56,6 +56,25 @@ def test_batch_shape_and_gradients_reach_every_table(encoding):
     assert points.grad is not None and points.grad.abs().sum() > 0
 
 
+def test_hashed_table_gradient_repeats_bit_for_bit_with_two_threads(encoding):
+    """Many points share each of the 512 hashed entries; their gradient sums must not depend on
+    which thread adds first (a training run must repeat at a fixed thread count)."""
+    points = torch.rand(40_000, 3, generator=torch.Generator().manual_seed(2)) - 0.5
+    weights = torch.randn(40_000, 4, 3, generator=torch.Generator().manual_seed(3))
+    previous = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        grads = []
+        for _ in range(4):
+            encoding.zero_grad()
+            (encoding(points) * weights).sum().backward()
+            grads.append(encoding.tables[3].grad.clone())
+    finally:
+        torch.set_num_threads(previous)
+    assert grads[0].abs().sum() > 0
+    assert all(torch.equal(g, grads[0]) for g in grads[1:])
+
+
 def test_interpolates_vertices_exactly(encoding):
     """At a lattice vertex the encoding returns that vertex's stored feature."""
     res = encoding.resolutions[3]

@@ -82,7 +82,10 @@ class HashEncoding(nn.Module):
         if self.is_dense(self.resolutions[level]):
             # grid_sample convention: the grid is indexed [F, z, y, x].
             return table[:, ijk[..., 2], ijk[..., 1], ijk[..., 0]].movedim(0, -1)
-        return table[spatial_hash(ijk, self.log2_table_size)]
+        # index_select, not table[ids]: its backward (index_add_) sums in a fixed order, where
+        # indexing's backward (index_put_ with accumulate) adds from several threads at once.
+        ids = spatial_hash(ijk, self.log2_table_size)
+        return table.index_select(0, ids.reshape(-1)).reshape(*ids.shape, table.shape[-1])
 
     def _dense_level(self, points: torch.Tensor, level: int) -> torch.Tensor:
         grid = (self.lattice_coords(points, level) / (self.resolutions[level] - 1)) * 2 - 1
