@@ -258,8 +258,9 @@ def table1_medium_faster(root: Path) -> str:
         "Stage 1 with 512 encoder points and 1,024 SDF samples a step, a plane U-Net of 8 channels, batch 32 and "
         "bfloat16; Stage 2 at batch 32 with the radar ResNet at 1/8 width and bfloat16 (docs/throughput.md, "
         "\"The table1-medium Radar2Shape rows, at 3x\"): `Radar2Shape` on the committed row's number of epochs, "
-        f"`{THIRD_TIME}` on schedules filling about a third of the committed fits' time. Paired with the committed "
-        f"rows: [paired.md]({link(TABLE1_MEDIUM_FASTER / 'paired.md')}).")
+        f"`{THIRD_TIME}` on schedules filling about a third of the committed fits' time; `LIST` is the committed "
+        "LIST recipe with bfloat16 autocast. Paired with the committed rows: "
+        f"[paired.md]({link(TABLE1_MEDIUM_FASTER / 'paired.md')}).")
 
 
 def table1_tiny(root: Path) -> str:
