@@ -8,7 +8,8 @@ the table1-medium-fast settings, and candidate settings that change what a step 
 encoder points or SDF samples (Stage 1), a larger batch, bfloat16, a narrower radar ResNet (Stage 2).
 The settings take turns for ``--rounds`` rounds and each keeps its best; the ratio is against the
 table1-medium row of the same stage, in the same run. Speed only: each candidate changes what the
-model learns, so none is adopted without its own fit (docs/throughput.md, "What limits").
+model learns, so none is adopted without its own fit (docs/throughput.md, "What limits"); the two
+marked table1-medium-faster there were fitted by that grid ("The table1-medium Radar2Shape rows, at 3x").
 """
 
 from __future__ import annotations
