@@ -9,9 +9,9 @@ per-step training value (``train/*_step``) the two logs share. A rerun that matc
 says the grid's number is a function of its configuration on this machine; a drift says how far
 threads, library versions or hardware move it. Exit code 0 when every value agrees within
 ``--rtol``, 1 when one does not, 2 on bad input. ``--twice`` compares two reruns with each other
-instead of a rerun with the log, for a run whose log was written before a change to the code. The learning-rate schedule must not depend on
-the number of epochs for the comparison to mean anything (the step schedules of the shipped
-configs do not).
+instead of a rerun with the log, for a run whose log was written before a change to the code.
+The learning-rate schedule must not depend on the number of epochs for the comparison to mean
+anything (the step schedules of the shipped configs do not).
 """
 
 from __future__ import annotations
@@ -122,8 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         with tempfile.TemporaryDirectory(prefix="rerun_check_") as tmp:
             if args.twice:
                 reference = step_values(rerun(fit_args, args.epochs, args.threads, Path(tmp) / "first"), args.epochs)
-            second = Path(tmp) / "second" if args.twice else Path(tmp)
-            rows = compare(reference, step_values(rerun(fit_args, args.epochs, args.threads, second), args.epochs))
+            rows = compare(reference, step_values(rerun(fit_args, args.epochs, args.threads, Path(tmp) / "rerun"), args.epochs))
     except (UserInputError, RuntimeError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -309,16 +309,18 @@ def results_page(root: Path) -> str:
     return "\n".join(p for p in parts if p).rstrip() + "\n"
 
 
+def _titled_rows(table: Path, title: str) -> list:
+    """The rows of a report's table with this model title; none while the report does not exist."""
+    return [(t, m) for t, m in read_table(table) if t == title] if table.is_file() else []
+
+
 def readme_block(root: Path) -> str:
     """The README's short table: Table 1 at medium scale, IoU and radar dependence per observability."""
     rows = read_table(root / TABLE1_MEDIUM / "table1-medium.csv")
     longer = read_table(root / TABLE1_MEDIUM_STAGE2 / "table1-medium-stage2.csv")
     first = [i for i, (title, _) in enumerate(rows) if title == "Radar2Shape"][:1]
-    verifier_table = root / TABLE1_MEDIUM_PARTIAL_VERIFIER / "table1-medium-partial-verifier.csv"
-    verified = [(t, m) for t, m in read_table(verifier_table) if t == VERIFIED_PARTIAL] if verifier_table.is_file() else []
-    faster_table = root / TABLE1_MEDIUM_FASTER / "table1-medium-faster.csv"
-    third = [(t, m) for t, m in read_table(faster_table) if t == THIRD_TIME] if faster_table.is_file() else []
-    longer = longer + verified + third
+    longer += _titled_rows(root / TABLE1_MEDIUM_PARTIAL_VERIFIER / "table1-medium-partial-verifier.csv", VERIFIED_PARTIAL)
+    longer += _titled_rows(root / TABLE1_MEDIUM_FASTER / "table1-medium-faster.csv", THIRD_TIME)
     rows = rows[: first[0] + 1] + longer + rows[first[0] + 1:] if first else rows + longer
     keep = ("Radar2Shape", "Radar2Shape, Stage 2 for 200 epochs", "Radar2Shape, Stage 2 for 200 epochs, mean of 8 samples",
             VERIFIED_PARTIAL, THIRD_TIME, "Diffusion-SDF", "TMNet", "LIST", "Nearest neighbour", "Mean shape")
