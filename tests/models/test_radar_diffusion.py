@@ -405,6 +405,32 @@ def test_init_weights_starts_from_a_trained_model_and_is_not_needed_to_load(stag
         tiny_model(stage1_ckpt, init_weights=str(init))
 
 
+def test_init_encoder_copies_the_radar_encoder_alone_and_zeroes_the_roll_angle_channels(stage1_ckpt, tmp_path):
+    """A zero-padded source's encoder goes into a circular-padded model: every encoder weight copied,
+    the stem's two roll-angle input channels at zero, the denoiser left as freshly drawn."""
+    source = tiny_model(stage1_ckpt)
+    with torch.no_grad():  # move every weight off its fresh draw, so a copy (or its absence) is visible
+        for parameter in source.parameters():
+            parameter.add_(torch.randn_like(parameter))
+    path = save_checkpoint(source, tmp_path / "source.ckpt")
+    started = tiny_model(stage1_ckpt, roll_padding="circular", init_encoder=path)
+    fresh = tiny_model(stage1_ckpt, roll_padding="circular")
+    copied = started.radar_encoder.state_dict()
+    for name, value in source.radar_encoder.state_dict().items():
+        if copied[name].shape == value.shape:
+            torch.testing.assert_close(copied[name], value, rtol=0, atol=0, msg=name)
+        else:  # the stem: [out, in + 2, k, k]
+            assert copied[name].shape[1] == value.shape[1] + 2, name
+            torch.testing.assert_close(copied[name][:, : value.shape[1]], value, rtol=0, atol=0)
+            assert copied[name][:, value.shape[1]:].abs().max() == 0
+    torch.testing.assert_close(started.latent_in.weight, fresh.latent_in.weight, rtol=0, atol=0)
+    assert not torch.equal(started.latent_in.weight, source.latent_in.weight)
+    with pytest.raises(UserInputError, match=r"init_encoder: .*radar_encoder\..* is \("):
+        tiny_model(stage1_ckpt, roll_padding="circular", encoder_width=0.25, init_encoder=path)
+    with pytest.raises(UserInputError, match="set one of them"):
+        tiny_model(stage1_ckpt, init_encoder=path, init_weights=path)
+
+
 def test_canonical_heading_trains_turned_radar_on_the_unturned_latents(stage1_ckpt):
     """``canonical_heading``: a turned sample's target is its record's unturned latent from the cache,
     whatever its turned points encode to; a record missing from the cache is one clear error."""

@@ -98,6 +98,31 @@ class LatentStandardiser(nn.Module):
         return x * self.std + self.mean
 
 
+def copy_radar_encoder(source: dict, encoder: nn.Module, path: str) -> None:
+    """Copy the ``radar_encoder.*`` weights of a RadarDiffusion state dict into ``encoder``.
+
+    A source read with zero roll padding lacks the two roll-angle input channels of circular
+    padding (the stem's last two); they start at zero, so the copy computes what the source's
+    encoder did, up to the padding at the roll edge. Any other difference is one clear error.
+    """
+    prefix = "radar_encoder."
+    weights = {key[len(prefix):]: value for key, value in source.items() if key.startswith(prefix)}
+    target = encoder.state_dict()
+    if set(weights) != set(target):
+        raise UserInputError(f"init_encoder: {path}: its radar encoder has other layers than this model's "
+                             "(encoder_depth, roll_padding?)")
+    for name, value in weights.items():
+        want = target[name]
+        if value.shape != want.shape:
+            stem = value.dim() == 4 and value.shape[0] == want.shape[0] and value.shape[2:] == want.shape[2:]
+            if not (stem and want.shape[1] == value.shape[1] + 2 and getattr(encoder, "roll_channels", 0) == 2):
+                raise UserInputError(f"init_encoder: {path}: radar_encoder.{name} is {tuple(value.shape)}, this model's "
+                                     f"{tuple(want.shape)} (encoder_width, num_freq or levels differ)")
+            value = torch.cat([value, value.new_zeros(value.shape[0], 2, *value.shape[2:])], dim=1)
+        target[name] = value
+    encoder.load_state_dict(target)
+
+
 class RadarDiffusion(ReconstructionModel):
     """Radar -> Stage-1 latents by causal Transformer diffusion; meshes through the frozen Stage-1 decoder.
 
@@ -111,6 +136,10 @@ class RadarDiffusion(ReconstructionModel):
             its Stage 1 and latent statistics) this model starts from, e.g. to fine-tune a model
             trained on fully observed radar to masked radar. Read only when the model is built
             fresh, like ``stage1_ckpt``: a checkpoint of the fine-tuned model loads without it.
+        init_encoder: a RadarDiffusion checkpoint whose radar encoder alone this model starts from
+            (:func:`copy_radar_encoder`), e.g. one trained on another family on the same radar
+            grid: the encoder reads physics every family shares, while the denoiser's latents
+            belong to its own Stage 1. Read only when the model is built fresh.
         cache_turned_latents: with the DataModule's ``roll_augment``, keep each (record, turn)'s
             latents the first time they are encoded and reuse them, as the cache above does for the
             unturned pose (one record has 2 R poses, so Stage 1 stops running once most were seen).
@@ -165,6 +194,7 @@ class RadarDiffusion(ReconstructionModel):
         refine_heading: bool = True,
         canonical_classes: list[str] | None = None,
         init_weights: str | None = None,
+        init_encoder: str | None = None,
         num_freq: int = 64,
         dim: int = 512,
         n_layers: int = 8,
@@ -207,6 +237,9 @@ class RadarDiffusion(ReconstructionModel):
         if canonical_classes and canonical_heading:
             raise UserInputError("RadarDiffusion: canonical_heading learns every class in its canonical heading; "
                                  "canonical_classes names the classes that are: set one of them")
+        if init_weights and init_encoder:
+            raise UserInputError("RadarDiffusion: init_weights starts every weight from a checkpoint, init_encoder "
+                                 "only the radar encoder: set one of them")
         if loss == "v" and not eps_skip:
             raise UserInputError("RadarDiffusion: loss='v' needs eps_skip=true (the network output is the velocity)")
         # A fresh contextvars.Context: the Lightning CLI hands its hyperparameters (a ContextVar) to
@@ -242,6 +275,9 @@ class RadarDiffusion(ReconstructionModel):
         self._canonical_labels: frozenset[int] = frozenset()  # canonical_classes' labels in the training data
         if fresh and init_weights:
             self.load_state_dict(load_checkpoint(init_weights, "a RadarDiffusion checkpoint", label="init_weights")["state_dict"])
+        if fresh and init_encoder:
+            source = load_checkpoint(init_encoder, "a RadarDiffusion checkpoint", label="init_encoder")["state_dict"]
+            copy_radar_encoder(source, self.radar_encoder, init_encoder)
 
     def train(self, mode: bool = True):
         """Stage 1 stays in eval mode: it is frozen."""
