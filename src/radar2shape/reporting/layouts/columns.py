@@ -45,6 +45,8 @@ MODEL_TITLES = {
     "radar2shape_circ_steps12k_k8": "Radar2Shape, circular roll padding, Stage 2 for 11,960 steps, mean of 8 samples",
     "radar2shape_third": "Radar2Shape, 3x settings, both stages on schedules of about a third of the committed fits' time",
     "radar2shape_faster": "Radar2Shape, 3x settings, Stage 2 for 1,000 epochs on the shipped real Stage 1",
+    "radar2shape_partsenc": "Radar2Shape, radar encoder started from the parts model's, Stage 2 for 600 epochs at batch 32",
+    "radar2shape_enc4": "Radar2Shape, radar encoder drawn fresh, Stage 2 for 600 epochs at batch 32 (control)",
     "radar2shape_s1long": "Radar2Shape, Stage 1 for 200 epochs, Stage 2 for 4,160 steps",
     "radar2shape_s1long_steps12k": "Radar2Shape, Stage 1 for 200 epochs, Stage 2 for 11,960 steps",
     "radar2shape_heading": "Radar2Shape, shapes learned in their canonical heading, heading by PO search",
