@@ -2,7 +2,8 @@
 # The paired comparisons of reports/table1-real-faster/paired.md: the real-target Stage 2 retrained at the
 # 3x step settings against the shipped real model (the same Stage 1 and test protocol) and the radar
 # lookup; the one whose radar encoder started from the parts model's against the shipped model, the
-# scratch 3x row and its control (the encoder drawn fresh); full and partial observability, from the per-shape score files the reports keep (scores/).
+# scratch 3x row and its control (the encoder drawn fresh); full and partial observability, from the
+# per-shape score files the reports keep (scores/).
 #   bash scripts/table1_real_faster_paired.sh      (after `radar2shape sweep table1-real-faster`)
 set -euo pipefail
 cd "$(dirname "$0")/.."

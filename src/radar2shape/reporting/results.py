@@ -227,7 +227,7 @@ TABLE1_REAL_FASTER = Path("reports/table1-real-faster")
 def table1_real_faster(root: Path) -> str:
     """The real-target Stage 2 retrained at the 3x step settings, and with its radar encoder started from the parts model's."""
     return paired_section(
-        root, TABLE1_REAL_FASTER, "Real targets, Stage 2 at 3x the shapes a second", lambda:
+        root, TABLE1_REAL_FASTER, "Real targets, Stage 2 retrained at batch 32, and from the parts model's radar encoder", lambda:
         "The shipped real model's Stage 2 retrained on its own Stage 1 (taken from the shipped file) at batch 32 "
         "with bfloat16 (docs/throughput.md): with the radar ResNet at 1/8 width for 1,000 epochs, and with the "
         "ResNet at the shipped 1/4 width started from the shipped parts model's (`init_encoder`) for 600 epochs, "
