@@ -88,6 +88,17 @@ def test_figures_show_each_row_once_from_the_replicate_that_saved_most():
     assert [c.name for c in chosen] == ["radar2shape-full-seed1", "nearest-full"]
 
 
+def test_long_row_titles_are_wrapped_to_fit_beside_their_row():
+    from radar2shape.reporting.figures import ROW_LABEL_CHARS, row_label
+
+    title = "Radar2Shape, radar encoder started from the parts model's, Stage 2 for 600 epochs at batch 32"
+    label = row_label(title)
+    lines = label.split("\n")
+    assert len(lines) == 4 and max(map(len, lines)) <= ROW_LABEL_CHARS
+    assert " ".join(lines) == title  # only the spaces between words become line breaks
+    assert row_label("LIST") == "LIST"
+
+
 def test_table1_lists_first_stages_scored_on_the_test_split(grid, tmp_path):
     stage1 = Path(yaml.safe_load(grid.read_text())["out_dir"]) / "radar2shape_stage1"
     (stage1 / "metrics.json").write_text(json.dumps({

@@ -91,6 +91,17 @@ def one_replicate_per_row(cells: list[Cell], layout: Layout, n_saved: dict[str, 
     return list(best.values())
 
 
+ROW_LABEL_CHARS = 28  # a line of a 9-point row label that fits beside one 2-inch row of panels
+
+
+def row_label(title: str, width: int = ROW_LABEL_CHARS) -> str:
+    """A row title broken into lines of at most ``width`` characters (a word longer stays whole), so
+    long model titles stack beside their row instead of running over the rows around it."""
+    import textwrap
+
+    return textwrap.fill(title, width, break_long_words=False, break_on_hyphens=False)
+
+
 def model_rows_figure(cells: list[Cell], layout: Layout, path: Path, n_shapes: int, title: str) -> Path | None:
     """Ground truth, then one row per model, for the first ``n_shapes`` test shapes the runs saved
     (seed replicates: see :func:`one_replicate_per_row`)."""
@@ -113,7 +124,7 @@ def model_rows_figure(cells: list[Cell], layout: Layout, path: Path, n_shapes: i
             if r == 0:
                 axes[r, c].set_title(f"test #{index}", fontsize=9)
             if c == 0:
-                axes[r, c].set_ylabel(label, fontsize=9)
+                axes[r, c].set_ylabel(row_label(label), fontsize=9)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
