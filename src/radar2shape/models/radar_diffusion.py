@@ -113,12 +113,11 @@ def copy_radar_encoder(source: dict, encoder: nn.Module, path: str) -> None:
                              "(encoder_depth, roll_padding?)")
     for name, value in weights.items():
         want = target[name]
+        if value.shape != want.shape and value.dim() == 4:  # a stem [out, in, k, k] lacking the roll-angle inputs
+            value = torch.cat([value, value.new_zeros(value.shape[0], encoder.roll_channels, *value.shape[2:])], dim=1)
         if value.shape != want.shape:
-            stem = value.dim() == 4 and value.shape[0] == want.shape[0] and value.shape[2:] == want.shape[2:]
-            if not (stem and want.shape[1] == value.shape[1] + 2 and getattr(encoder, "roll_channels", 0) == 2):
-                raise UserInputError(f"init_encoder: {path}: radar_encoder.{name} is {tuple(value.shape)}, this model's "
-                                     f"{tuple(want.shape)} (encoder_width, num_freq or levels differ)")
-            value = torch.cat([value, value.new_zeros(value.shape[0], 2, *value.shape[2:])], dim=1)
+            raise UserInputError(f"init_encoder: {path}: radar_encoder.{name} is {tuple(weights[name].shape)}, this "
+                                 f"model's {tuple(want.shape)} (encoder_width, num_freq or levels differ)")
         target[name] = value
     encoder.load_state_dict(target)
 

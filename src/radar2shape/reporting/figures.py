@@ -4,6 +4,7 @@ read back through each run's saved test config.
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -97,8 +98,6 @@ ROW_LABEL_CHARS = 28  # a line of a 9-point row label that fits beside one 2-inc
 def row_label(title: str, width: int = ROW_LABEL_CHARS) -> str:
     """A row title broken into lines of at most ``width`` characters (a word longer stays whole), so
     long model titles stack beside their row instead of running over the rows around it."""
-    import textwrap
-
     return textwrap.fill(title, width, break_long_words=False, break_on_hyphens=False)
 
 
