@@ -17,6 +17,10 @@ the most-agreed candidate (consensus, no learning), the verifier's choice, the m
 3 best-scored candidates, the oracle best of K.
 Collection is cached per shape in ``--cache`` and resumes.
 
+More folders after the first in ``--data`` (other seeds of the family) add fit shapes: the fit takes
+the first folder's records first, then each further folder's ``--split`` records in turn, while the
+scored shapes stay the first folder's; so a verifier fitted on more shapes is scored on the same ones.
+
 With ``--verifier FILE --fit-shapes 0`` a trained verifier is only scored, e.g. on another family's
 test split (``--split test``) to see whether its choice carries over.
 
@@ -45,7 +49,9 @@ import numpy as np
 def parse_args(argv):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ckpt", type=Path, required=True, help="a RadarDiffusion checkpoint")
-    parser.add_argument("--data", type=Path, required=True, help="records the model did not train on")
+    parser.add_argument("--data", type=Path, nargs="+", required=True, help="records the model did not train on; "
+                        "further folders' --split records add fit shapes after the first folder's (scored shapes are "
+                        "the first folder's)")
     parser.add_argument("--split", default="train", help="the data split whose records are used (default train)")
     parser.add_argument("--eval-split", help="score on this split's first --eval-shapes records instead of the "
                         "last records of --split")
@@ -66,7 +72,25 @@ def parse_args(argv):
     return parser.parse_args(argv)
 
 
-Key = tuple  # (split, record index, view): view 0 the stored heading, view v > 0 a seeded exact turn
+Key = tuple  # (data folder, split, record index, view): view 0 the stored heading, view v > 0 a seeded exact turn
+
+
+def fit_keys_of(available: list[tuple[str, int]], split: str, fit_shapes: int, turns: int) -> list[Key]:
+    """The fit shapes: the first records of each ``(folder, records free to fit)`` in turn, until ``fit_shapes``."""
+    keys, left = [], fit_shapes
+    for source, count in available:
+        take = min(left, count)
+        keys += [(source, split, i, view) for i in range(take) for view in range(turns)]
+        left -= take
+    if left:
+        folders = ", ".join(f"{source} ({count})" for source, count in available)
+        raise SystemExit(f"error: --fit-shapes {fit_shapes}: only {fit_shapes - left} {split} records free to fit in {folders}")
+    return keys
+
+
+def upgrade_keys(store: dict, source: str) -> dict:
+    """A cache written before keys named their data folder: its (split, index, view) keys belong to ``source``."""
+    return {(key if len(key) == 4 else (source, *key)): value for key, value in store.items()}
 
 
 def view_of(dm, split: str, index: int, view: int) -> dict:
@@ -87,8 +111,9 @@ def view_of(dm, split: str, index: int, view: int) -> dict:
     return {**item, **{key: torch.from_numpy(np.ascontiguousarray(value)) for key, value in turned.items()}}
 
 
-def collect(model, dm, keys: list[Key], k, cache: Path, keep_latents: set[Key]) -> dict:
-    """Per key: features [K, F], candidate IoUs [K] (and latents for ``keep_latents``), cached."""
+def collect(model, dms: dict, keys: list[Key], k, cache: Path, keep_latents: set[Key]) -> dict:
+    """Per key: features [K, F], candidate IoUs [K] (and latents for ``keep_latents``), cached; ``dms`` maps
+    each data folder to its DataModule, the first being the folder of caches whose keys name none."""
     import torch
 
     from radar2shape.atomic import atomic_path
@@ -96,11 +121,13 @@ def collect(model, dm, keys: list[Key], k, cache: Path, keep_latents: set[Key]) 
     from radar2shape.models.verifier import candidate_features, probe_points
     from tqdm import tqdm
 
-    store = torch.load(cache, weights_only=False) if cache.exists() else {}
+    store = upgrade_keys(torch.load(cache, weights_only=False), next(iter(dms))) if cache.exists() else {}
     probe = probe_points(float(model.stage1.hparams.bound))
     todo = [key for key in keys if key not in store or (key in keep_latents and "latents" not in store[key])]
     for count, key in enumerate(tqdm(todo, desc="candidates", unit="shape")):
-        item = view_of(dm, *key)
+        source, *view = key
+        dm = dms[source]
+        item = view_of(dm, *view)
         batch = {"radar": renormalise(item["radar"][None], item["radar_mask"][None], dm.radar_spec, model.radar_spec),
                  "radar_mask": item["radar_mask"][None]}
         latents = model.sample_latents(batch, num_samples=k, sample_seed=0)[0]
@@ -167,23 +194,23 @@ def main(argv=None) -> int:
     model = load_model(args.ckpt)
     split, eval_split = args.split, args.eval_split or args.split
     sampled = {"surface": 0, "sdf": 0, "eval": 30000, "occ": 100000}
-    dm = ShapeDataModule(root=str(args.data), observability=args.observability, mask_rule=args.mask_rule,
-                         points={split: sampled, eval_split: sampled})
+    dms = {str(data): ShapeDataModule(root=str(data), observability=args.observability, mask_rule=args.mask_rule,
+                                      points={split: sampled, eval_split: sampled}) for data in args.data}
+    source, dm = next(iter(dms.items()))  # the scored shapes' folder
     n, n_eval = len(dm.records(split)), len(dm.records(eval_split))
     if args.turns < 1:
         raise SystemExit(f"error: --turns: expected a positive integer, got {args.turns}")
-    if eval_split == split and args.fit_shapes + args.eval_shapes > n:
-        raise SystemExit(f"error: {args.data}: {n} {split} records, fewer than --fit-shapes + --eval-shapes")
-    if eval_split != split and (args.fit_shapes > n or args.eval_shapes > n_eval):
-        raise SystemExit(f"error: {args.data}: {n} {split} and {n_eval} {eval_split} records, fewer than "
-                         "--fit-shapes or --eval-shapes")
+    if args.eval_shapes > (n if eval_split == split else n_eval):
+        raise SystemExit(f"error: {source}: {n_eval} {eval_split} records, fewer than --eval-shapes {args.eval_shapes}")
     if (args.verifier is None) == (args.fit_shapes == 0):
         raise SystemExit("error: fit a verifier (--fit-shapes N > 0) or score one (--verifier FILE --fit-shapes 0)")
-    fit_keys = [(split, i, view) for i in range(args.fit_shapes) for view in range(args.turns)]
     first_eval = n - args.eval_shapes if eval_split == split else 0
-    eval_keys = [(eval_split, i, 0) for i in range(first_eval, first_eval + args.eval_shapes)]
+    available = [(source, first_eval if eval_split == split else n)]
+    available += [(data, len(other.records(split))) for data, other in list(dms.items())[1:]]
+    fit_keys = fit_keys_of(available, split, args.fit_shapes, args.turns)
+    eval_keys = [(source, eval_split, i, 0) for i in range(first_eval, first_eval + args.eval_shapes)]
     args.cache.parent.mkdir(parents=True, exist_ok=True)
-    store = collect(model, dm, fit_keys + eval_keys, args.candidates, args.cache, set(eval_keys))
+    store = collect(model, dms, fit_keys + eval_keys, args.candidates, args.cache, set(eval_keys))
 
     if args.verifier is not None:
         verifier = load_verifier(args.verifier, model.n_levels)
@@ -201,7 +228,9 @@ def main(argv=None) -> int:
         views = f", each in {args.turns} headings (stored + exact whole-step turns)" if args.turns > 1 else ""
         scored_on = (f"{args.eval_shapes} others (last records)" if eval_split == split
                      else f"the first {args.eval_shapes} {eval_split} records")
-        trained = (f"Verifier trained on {args.fit_shapes} shapes ({split} split, first records{views}), "
+        per_folder = {data: sum(key[0] == data and key[3] == 0 for key in fit_keys) for data in dms}
+        more = "".join(f"; {count} of them from `{data}`" for data, count in list(per_folder.items())[1:] if count)
+        trained = (f"Verifier trained on {args.fit_shapes} shapes ({split} split, first records{views}{more}), "
                    f"scored on {scored_on}")
     names = feature_names(model.n_levels)
     consensus_column = names.index("consensus")
@@ -209,7 +238,7 @@ def main(argv=None) -> int:
     dataset = dm.dataset(eval_split)
     rows = []
     for key in eval_keys:
-        i = key[1]
+        i = key[2]
         entry, item = store[key], dataset[(0, i)]
         latents, cand_iou = entry["latents"], entry["iou"]
         with torch.no_grad():
@@ -247,7 +276,7 @@ def main(argv=None) -> int:
     rules = ["first", "mean_of_k", "consensus", f"consensus_top{KEEP}", "verifier", *(f"verifier_top{m}" for m in TOP),
              "oracle"]
     lines = [f"# Choosing among K = {args.candidates} Stage-2 samples: {args.ckpt}", "",
-             f"{trained} of `{args.data}`, {args.observability} observability; every IoU below meshed and scored as the "
+             f"{trained} of `{source}`, {args.observability} observability; every IoU below meshed and scored as the "
              "evaluator does, paired by shape (gain: mean and standard error of the per-shape difference).", "",
              "| returned shape | IoU | gain over first sample | gain over K-sample mean |", "|---|---|---|---|"]
     mean_k = column("iou_mean_of_k")
@@ -289,7 +318,7 @@ def main(argv=None) -> int:
     if args.out and args.verifier is None:
         save_verifier(verifier, args.out, model.n_levels,
                       {"checkpoint": args.ckpt.name, "checkpoint_sha256": sha256_of(args.ckpt),  # the exact model whose samples trained it
-                       "data": str(args.data), "split": split, "observability": args.observability,
+                       "data": [str(data) for data in args.data], "split": split, "observability": args.observability,
                        "fit_shapes": args.fit_shapes, "turns": args.turns,
                        "candidates": args.candidates, "report": str(args.report)})
         print(f"wrote {args.out}")

@@ -7,6 +7,7 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
+import pytest
 import torch
 
 from data_modules import ShapeDataModule
@@ -39,3 +40,21 @@ def test_views_are_the_stored_record_and_seeded_exact_turns(parts_dataset):
         assert all(torch.equal(again[k], turned[k]) for k in KEYS)  # seeded by (record, view): repeatable
         found.append(matches[0])
     assert len(set(found)) > 1  # the views are not all the same turn
+
+
+def test_fit_shapes_fill_from_each_folder_in_turn():
+    keys = train_verifier.fit_keys_of([("a", 2), ("b", 3)], "train", fit_shapes=4, turns=2)
+    # all of a's free records first, then b's first two; each record in its two views
+    assert keys == [(source, "train", i, view) for source, i in (("a", 0), ("a", 1), ("b", 0), ("b", 1))
+                    for view in (0, 1)]
+    assert train_verifier.fit_keys_of([("a", 2), ("b", 3)], "train", fit_shapes=1, turns=1) == [("a", "train", 0, 0)]
+
+
+def test_too_few_fit_records_is_one_error_line():
+    with pytest.raises(SystemExit, match=r"--fit-shapes 6: only 5 train records free to fit in a \(2\), b \(3\)"):
+        train_verifier.fit_keys_of([("a", 2), ("b", 3)], "train", fit_shapes=6, turns=1)
+
+
+def test_a_cache_whose_keys_name_no_folder_belongs_to_the_first():
+    store = {("train", 3, 0): "old", ("b", "train", 3, 0): "new"}
+    assert train_verifier.upgrade_keys(store, "a") == {("a", "train", 3, 0): "old", ("b", "train", 3, 0): "new"}
