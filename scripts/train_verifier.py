@@ -125,9 +125,9 @@ def collect(model, dms: dict, keys: list[Key], k, cache: Path, keep_latents: set
     probe = probe_points(float(model.stage1.hparams.bound))
     todo = [key for key in keys if key not in store or (key in keep_latents and "latents" not in store[key])]
     for count, key in enumerate(tqdm(todo, desc="candidates", unit="shape")):
-        source, *view = key
+        source, *record = key  # record: (split, index, view)
         dm = dms[source]
-        item = view_of(dm, *view)
+        item = view_of(dm, *record)
         batch = {"radar": renormalise(item["radar"][None], item["radar_mask"][None], dm.radar_spec, model.radar_spec),
                  "radar_mask": item["radar_mask"][None]}
         latents = model.sample_latents(batch, num_samples=k, sample_seed=0)[0]
