@@ -1,19 +1,24 @@
 #!/usr/bin/env bash
 # The paired comparisons of reports/rollsym-medium-long/paired.md: the profile U-Net trained 200
 # epochs against rollsym-medium's seed-0 U-Net (60 epochs) and InvRT rows in the same setting, from
-# the per-shape score files both reports keep (scores/).
-#   bash scripts/rollsym_medium_long_paired.sh      (after `radar2shape sweep rollsym-medium-long`)
+# the per-shape score files the reports keep (scores/); low and high noise from rollsym-medium-long,
+# medium from rollsym-medium-long-mid.
+#   bash scripts/rollsym_medium_long_paired.sh      (after `radar2shape sweep rollsym-medium-long` and
+#                                                     `radar2shape sweep rollsym-medium-long-mid`)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 R=reports/rollsym-medium-long
 S=$R/scores
 C=reports/rollsym-medium/scores
+M=reports/rollsym-medium-long-mid/scores
 PY=${PY:-.venv/bin/python}
 pairs=()
 for obs in full partial; do
-  for noise in low high; do
-    pairs+=(--pair "U-Net 200 epochs - U-Net 60 epochs, $obs, $noise noise" $S/unet_long-$obs-$noise.csv $C/unet-$obs-$noise-seed0.csv)
-    pairs+=(--pair "U-Net 200 epochs - InvRT, $obs, $noise noise" $S/unet_long-$obs-$noise.csv $C/invrt-$obs-$noise-seed0.csv)
+  for noise in low medium high; do
+    long=$S/unet_long-$obs-$noise.csv
+    [ "$noise" = medium ] && long=$M/unet_long-$obs-$noise.csv
+    pairs+=(--pair "U-Net 200 epochs - U-Net 60 epochs, $obs, $noise noise" $long $C/unet-$obs-$noise-seed0.csv)
+    pairs+=(--pair "U-Net 200 epochs - InvRT, $obs, $noise noise" $long $C/invrt-$obs-$noise-seed0.csv)
   done
 done
 "$PY" scripts/paired_scores.py --out $R/paired.md --metrics iou_s match_s iou_r "${pairs[@]}"

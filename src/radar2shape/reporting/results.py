@@ -103,7 +103,8 @@ def table1_real(root: Path) -> str:
         root, TABLE1_REAL, "Table 1 on real targets",
         "FlightGear's aircraft, ships, vehicles and buildings and the Gazebo models (`make data-real`; FlightGear "
         "data GPL-2+, Gazebo models (osrf/gazebo_models) CC BY 3.0), split by object, on the parts_medium radar "
-        "grid and protocol. Rows the grid has not run yet read n/a. Mean ± std over the test objects:",
+        "grid and protocol. Rows the grid has not run yet read n/a (Diffusion-SDF has a grid and section of its "
+        "own, \"Real targets, the Diffusion-SDF baseline\"). Mean ± std over the test objects:",
         "Diagnostics:", f"Per class: [per_class.md]({link(TABLE1_REAL / 'per_class.md')})." if per_class else "")
 
 
