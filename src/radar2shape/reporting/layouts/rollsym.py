@@ -168,6 +168,7 @@ LAYOUT = Layout("rollsym", (IOU_R, IOU_S, MATCH_S), write_rollsym, ("row", "grou
                 {"unet": "Profile U-Net diffusion (ours)", "unet_paper": "Profile U-Net diffusion, as in the paper",
                  "unet_cfg": "Profile U-Net diffusion + guidance (drop 0.15, scale 2)",
                  "unet_long": "Profile U-Net diffusion, 200 epochs, step schedule, weight averaging",
+                 "unet_500": "Profile U-Net diffusion, 500 epochs, step schedule, weight averaging",
                  "invrt": "InvRT"}, {"full": "Full", "partial": "Partial"},
                 noise_title, diagnostics=(DEPENDENCE_IOU_S, SHAPES_IOU_S),
                 describe_group=group_title({"full": "Full", "partial": "Partial"}))
