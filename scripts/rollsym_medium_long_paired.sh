@@ -17,19 +17,20 @@ M=reports/rollsym-medium-long-mid/scores
 X=reports/rollsym-medium-longer/scores
 X1=reports/rollsym-medium-longer-seed1/scores
 PY=${PY:-.venv/bin/python}
+unet_200() {  # the 200-epoch U-Net's scores in setting $1 (<obs>-<noise>): medium noise ran in a grid of its own
+  case $1 in *-medium) echo "$M/unet_long-$1.csv" ;; *) echo "$S/unet_long-$1.csv" ;; esac
+}
 pairs=()
 for obs in full partial; do
   for noise in low medium high; do
-    long=$S/unet_long-$obs-$noise.csv
-    [ "$noise" = medium ] && long=$M/unet_long-$obs-$noise.csv
+    long=$(unet_200 $obs-$noise)
     pairs+=(--pair "U-Net 200 epochs - U-Net 60 epochs, $obs, $noise noise" $long $C/unet-$obs-$noise-seed0.csv)
     pairs+=(--pair "U-Net 200 epochs - InvRT, $obs, $noise noise" $long $C/invrt-$obs-$noise-seed0.csv)
   done
 done
 for setting in full-low full-medium full-high partial-low; do
   obs=${setting%-*} noise=${setting#*-}
-  long=$S/unet_long-$setting.csv
-  [ "$noise" = medium ] && long=$M/unet_long-$setting.csv
+  long=$(unet_200 $setting)
   pairs+=(--pair "U-Net 500 epochs - U-Net 200 epochs, $obs, $noise noise" $X/unet_500-$setting.csv $long)
   pairs+=(--pair "U-Net 500 epochs - InvRT, $obs, $noise noise" $X/unet_500-$setting.csv $C/invrt-$setting-seed0.csv)
 done

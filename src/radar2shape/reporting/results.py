@@ -165,6 +165,12 @@ def paired_section(root: Path, folder: Path, title: str, text) -> str:
     return table1_section(root, folder, title, text(), "Diagnostics:")
 
 
+def paired_links(folder: Path, per_class: bool = True) -> str:
+    """The closing links of a paired real-target section: its paired.md, then its per_class.md."""
+    links = f"[paired.md]({link(folder / 'paired.md')})"
+    return links + (f"; per class: [per_class.md]({link(folder / 'per_class.md')})." if per_class else ".")
+
+
 def table1_real_s1long(root: Path) -> str:
     """The real-target rows on a Stage 1 trained 200 epochs."""
     return paired_section(
@@ -190,7 +196,7 @@ def table1_real_seeds(root: Path) -> str:
         root, TABLE1_REAL_SEEDS, "Real targets, other Stage-2 seeds", lambda:
         "The shipped `real` model's Stage-2 recipe with seeds other than its 0 (the grid's `-seedN` runs), "
         "on the very Stage 1 the shipped file holds, tested the same way. Paired with seed 0 per seed: "
-        f"[paired.md]({link(TABLE1_REAL_SEEDS / 'paired.md')}).")
+        + paired_links(TABLE1_REAL_SEEDS, per_class=False))
 
 
 TABLE1_REAL_HEADING = Path("reports/table1-real-heading")
@@ -203,8 +209,7 @@ def table1_real_heading(root: Path) -> str:
         "Stage 1 trained on canonical headings only, Stage 2 on turned radar with the unturned latents as "
         "targets (`canonical_heading`), the reconstruction placed in the observed heading by a PO search "
         "(docs/radar_diffusion.md, \"Objects in any heading\"); otherwise the shipped real model's Stage-2 "
-        f"recipe. Paired with the shipped real model and the lookup: [paired.md]({link(TABLE1_REAL_HEADING / 'paired.md')}); "
-        f"per class: [per_class.md]({link(TABLE1_REAL_HEADING / 'per_class.md')}).")
+        "recipe. Paired with the shipped real model and the lookup: " + paired_links(TABLE1_REAL_HEADING))
 
 
 TABLE1_REAL_FRONT = Path("reports/table1-real-front")
@@ -218,8 +223,7 @@ def table1_real_front(root: Path) -> str:
         "other class turned as the shipped model learns it (`roll_augment_skip_classes`, `canonical_classes`); "
         "every reconstruction placed in the observed heading by a PO search (docs/radar_diffusion.md, "
         "\"Objects in any heading\"); otherwise the shipped real model's recipes. Paired with the shipped real "
-        f"model, the model with every class canonical and the lookup: [paired.md]({link(TABLE1_REAL_FRONT / 'paired.md')}); "
-        f"per class: [per_class.md]({link(TABLE1_REAL_FRONT / 'per_class.md')}).")
+        "model, the model with every class canonical and the lookup: " + paired_links(TABLE1_REAL_FRONT))
 
 
 TABLE1_REAL_FASTER = Path("reports/table1-real-faster")
@@ -233,7 +237,7 @@ def table1_real_faster(root: Path) -> str:
         "with bfloat16 (docs/throughput.md): with the radar ResNet at 1/8 width for 1,000 epochs, and with the "
         "ResNet at the shipped 1/4 width started from the shipped parts model's (`init_encoder`) for 600 epochs, "
         "and that run with its encoder drawn fresh (the control). "
-        f"Paired with the shipped real model and the lookup: [paired.md]({link(TABLE1_REAL_FASTER / 'paired.md')}).")
+        "Paired with the shipped real model and the lookup: " + paired_links(TABLE1_REAL_FASTER, per_class=False))
 
 
 TABLE1_REAL_DIFFUSION_SDF = Path("reports/table1-real-diffusion-sdf")
@@ -246,8 +250,7 @@ def table1_real_diffusion_sdf(root: Path) -> str:
         "Diffusion-SDF trained on the real train split with the recipe of the first real-target table (its VAE "
         "60 epochs, its Stage 2 80 epochs on random partial windows; one checkpoint tested under both "
         "observabilities). Paired with Radar2Shape on that recipe, the shipped real model and the lookup: "
-        f"[paired.md]({link(TABLE1_REAL_DIFFUSION_SDF / 'paired.md')}); per class: "
-        f"[per_class.md]({link(TABLE1_REAL_DIFFUSION_SDF / 'per_class.md')}).")
+        + paired_links(TABLE1_REAL_DIFFUSION_SDF))
 
 
 def real_verifier(root: Path) -> str:
