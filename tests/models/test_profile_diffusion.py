@@ -193,3 +193,25 @@ def test_guidance_zero_ignores_the_radar_and_condition_dropout_trains(batch):
     dropping.denoise = lambda h_t, t, radar_input: seen.append(radar_input) or torch.zeros_like(h_t)
     dropping.diffusion_loss(batch)
     assert not seen[0].any()  # cond_drop = 1: every sample sees "nothing observed"
+
+
+@pytest.mark.parametrize("reduce, expected", [("mean", [[2.5, 25.0]]), ("median", [[1.5, 15.0]])])
+def test_draws_are_combined_point_wise_by_sample_reduce(batch, reduce, expected):
+    """Four draws of one input, one point: (1, 10), (2, 20), (1, 10), (6, 60) -> mean (2.5, 25), median (1.5, 15)."""
+    model = ProfileUNetDiffusion(**TINY_UNET, num_samples=4, sample_reduce=reduce).eval()
+    draws = torch.tensor([1.0, 2.0, 1.0, 6.0])
+    b = batch["radar"].shape[0]
+
+    def fake_sample(eps_fn, shape, **kwargs):  # draw j of every input holds draws[j] at every point
+        assert shape == (4 * b, model.profile_points, 2)
+        rows = draws.repeat_interleave(b)[:, None, None]
+        return torch.cat([rows, 10 * rows], dim=2).expand(-1, model.profile_points, 2)
+
+    model.diffusion.sample = fake_sample
+    out = model.predict_normalised(batch)
+    torch.testing.assert_close(out, torch.tensor(expected).expand(b, model.profile_points, 2))
+
+
+def test_unknown_sample_reduce_is_one_error_line():
+    with pytest.raises(UserInputError, match="sample_reduce must be one of \\['mean', 'median'\\], got 'mode'"):
+        ProfileUNetDiffusion(**TINY_UNET, sample_reduce="mode")

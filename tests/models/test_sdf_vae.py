@@ -271,3 +271,48 @@ def test_latent_swap_takes_coarse_levels_from_b(tmp_path):
     assert titles[0] == "A" and titles[-1] == "B" and len(titles) == 4
     meshes = [trimesh.creation.icosphere(1, radius=0.3), trimesh.Trimesh()] * 2
     assert plot_rows([meshes], titles, ["pair"], tmp_path / "swap.png", n_points=200).is_file()
+
+
+def test_init_weights_starts_from_a_stage1_and_is_not_saved(model, tmp_path):
+    """init_weights copies every weight of a same-sized SDFVAE; the new model's checkpoint loads without the file."""
+    with torch.no_grad():  # weights no fresh model has
+        for p in model.parameters():
+            p.add_(torch.randn_like(p))
+    source = tmp_path / "source.ckpt"
+    torch.save({"state_dict": model.state_dict(), "hyper_parameters": dict(model.hparams),
+                "pytorch-lightning_version": L.__version__}, source)
+    torch.manual_seed(1)
+    started = SDFVAE(**TINY, init_weights=str(source))
+    expected = model.state_dict()
+    assert all(torch.equal(v, expected[k]) for k, v in started.state_dict().items())
+    assert "init_weights" not in started.hparams
+    own = tmp_path / "started.ckpt"
+    torch.save({"state_dict": started.state_dict(), "hyper_parameters": dict(started.hparams),
+                "pytorch-lightning_version": L.__version__}, own)
+    source.unlink()  # the started model's own checkpoint must not need it
+    loaded = SDFVAE.load_from_checkpoint(own, weights_only=True)
+    assert all(torch.equal(v, expected[k]) for k, v in loaded.state_dict().items())
+
+
+def test_init_weights_takes_the_stage1_of_a_radar2shape_checkpoint(model, tmp_path):
+    """A Stage-2 checkpoint holds its Stage 1 under 'stage1.': those weights, not the Stage-2 ones."""
+    with torch.no_grad():
+        for p in model.parameters():
+            p.mul_(-2.0)
+    state = {f"stage1.{k}": v for k, v in model.state_dict().items()} | {"latent_out.weight": torch.ones(3, 3)}
+    source = tmp_path / "stage2.ckpt"
+    torch.save({"state_dict": state, "hyper_parameters": {"stage1_hparams": dict(model.hparams)},
+                "pytorch-lightning_version": L.__version__}, source)
+    started = SDFVAE(**TINY, init_weights=str(source))
+    expected = model.state_dict()
+    assert all(torch.equal(v, expected[k]) for k, v in started.state_dict().items())
+
+
+def test_init_weights_of_other_sizes_is_one_error_line(model, tmp_path):
+    source = tmp_path / "wide.ckpt"
+    torch.save({"state_dict": model.state_dict(), "hyper_parameters": dict(model.hparams),
+                "pytorch-lightning_version": L.__version__}, source)
+    with pytest.raises(UserInputError, match=r"init_weights: .*wide.ckpt: .* is \(.*\), this model's is \(.*sizes differ"):
+        SDFVAE(**{**TINY, "latent_dim": TINY["latent_dim"] * 2}, init_weights=str(source))
+    with pytest.raises(UserInputError, match=r"init_weights: .*missing.ckpt not found"):
+        SDFVAE(**TINY, init_weights=str(tmp_path / "missing.ckpt"))

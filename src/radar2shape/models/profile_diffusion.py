@@ -140,6 +140,13 @@ class ProfileModel(ReconstructionModel):
         return out
 
 
+# How the draws of one input ``[K, B, P, 2]`` become its profile ``[B, P, 2]``.
+SAMPLE_REDUCTIONS = {
+    "mean": lambda draws: draws.mean(dim=0),
+    "median": lambda draws: draws.quantile(0.5, dim=0),  # the mid-point of the middle two when K is even
+}
+
+
 class ProfileUNetDiffusion(ProfileModel):
     """DDPM over profile parameters with a 1D U-Net over aspect as the denoiser (docs/design.md section 2).
 
@@ -158,7 +165,9 @@ class ProfileUNetDiffusion(ProfileModel):
     Loss: MSE between predicted and true noise (epsilon prediction) at uniform timesteps;
     ``min_snr_gamma`` weights it by ``min(SNR, gamma) / SNR`` (Hang et al. 2023), which shifts weight
     to the noisy steps where the radar decides the global shape. Sampling: DDPM ancestral over all
-    steps, or DDIM with ``sample_steps``; ``num_samples > 1`` averages that many draws.
+    steps, or DDIM with ``sample_steps``; ``num_samples > 1`` combines that many draws point-wise by
+    ``sample_reduce``: their mean (the posterior mean) or their median (what a regressor trained
+    with an L1 loss estimates, and a summary no single stray draw can pull).
     Classifier-free guidance: ``cond_drop`` trains that share of samples on the all-zero "nothing
     observed" input, and ``guidance`` > 1 samples with ``eps_u + guidance (eps_c - eps_u)``.
     ``lr_decay_steps`` / ``lr_decay`` (a step schedule) and ``ema_decay`` (weight averaging) are the
@@ -183,6 +192,7 @@ class ProfileUNetDiffusion(ProfileModel):
         clip_x0: float | None = 1.0,
         min_snr_gamma: float | None = 5.0,
         num_samples: int = 1,
+        sample_reduce: str = "mean",
         sample_seed: int = 0,
         lr: float = 1e-3,
         weight_decay: float = 0.0,
@@ -194,6 +204,9 @@ class ProfileUNetDiffusion(ProfileModel):
         guidance: float = 1.0,
     ) -> None:
         super().__init__()
+        if sample_reduce not in SAMPLE_REDUCTIONS:
+            raise UserInputError(f"ProfileUNetDiffusion: sample_reduce must be one of {sorted(SAMPLE_REDUCTIONS)}, "
+                                 f"got {sample_reduce!r}")
         self.save_hyperparameters()
         n_params = 2 * profile_points
         self.profile_in = nn.Linear(n_params, profile_channels * num_aspect)
@@ -233,7 +246,7 @@ class ProfileUNetDiffusion(ProfileModel):
         return {"loss": self.diffusion_loss(batch)}
 
     def predict_normalised(self, batch: dict) -> torch.Tensor:
-        """Sampled profiles at network scale, the point-wise mean of ``num_samples`` draws.
+        """Sampled profiles at network scale: ``num_samples`` draws combined point-wise by ``sample_reduce``.
 
         One draw is a sample of the posterior p(profile | radar); averaging k draws estimates the
         posterior mean, which trades diversity for expected accuracy (docs/rollsym.md). Seeded, so
@@ -251,4 +264,4 @@ class ProfileUNetDiffusion(ProfileModel):
             eps_fn, (k * b, self.profile_points, 2), method=hp.sampler,
             steps=hp.sample_steps if hp.sampler == "ddim" else None, generator=generator, device=radar_input.device,
         )
-        return samples.view(k, b, self.profile_points, 2).mean(dim=0)
+        return SAMPLE_REDUCTIONS[hp.get("sample_reduce", "mean")](samples.view(k, b, self.profile_points, 2))

@@ -28,7 +28,7 @@ from torch.nn import functional as F
 from radar2shape.checkpoints import load_checkpoint
 from radar2shape.errors import UserInputError
 from radar2shape.models.base import Reconstruction, ReconstructionModel
-from radar2shape.models.sdf_vae import SDFVAE
+from radar2shape.models.sdf_vae import SDFVAE, stage1_weights
 from radar2shape.nn.diffusion import GaussianDiffusion, drop_condition, guided
 from radar2shape.nn.positional import TimestepEmbedding, sinusoidal_embedding
 from radar2shape.nn.radar_encoder import PADDINGS, RadarBlockEncoder
@@ -42,19 +42,12 @@ def load_stage1(path: str | Path) -> SDFVAE:
     ``path`` may also be a Stage-2 checkpoint (a trained or shipped Radar2Shape model): it carries
     its Stage 1's weights and hyperparameters, so a new Stage 2 can start from that exact Stage 1.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise UserInputError(f"stage1_ckpt: {path} not found (train Stage 1 first: conf/experiment/sdf_vae_*.yaml)")
+    hparams, state = stage1_weights(path, label="stage1_ckpt")
     try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-        stage1_hparams = ckpt.get("hyper_parameters", {}).get("stage1_hparams")
-        if stage1_hparams is None:
-            return SDFVAE.load_from_checkpoint(path, map_location="cpu", weights_only=True)
-        stage1 = SDFVAE(**stage1_hparams)
-        stage1.load_state_dict({k.removeprefix("stage1."): v for k, v in ckpt["state_dict"].items()
-                                if k.startswith("stage1.")})
+        stage1 = SDFVAE(**{k: v for k, v in hparams.items() if not k.startswith("_")})  # not the CLI's _class_path
+        stage1.load_state_dict(state)
         return stage1
-    except (KeyError, TypeError, ValueError, RuntimeError, AttributeError) as err:
+    except (KeyError, TypeError, ValueError, RuntimeError) as err:
         message = f"stage1_ckpt: {path} is not a checkpoint of SDFVAE or RadarDiffusion ({type(err).__name__}: {err})"
         raise UserInputError(message) from err
 

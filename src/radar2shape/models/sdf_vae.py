@@ -12,9 +12,13 @@ We follow the code the method is built on. No plane reconstruction loss.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import torch
 import trimesh
+from torch import nn
 
+from radar2shape.checkpoints import load_checkpoint
 from radar2shape.errors import UserInputError
 from radar2shape.models.base import Reconstruction, ReconstructionModel
 from radar2shape.nn.gaussian import gaussian_kl, reparameterize
@@ -74,6 +78,32 @@ def check_points(batch: dict, key: str) -> torch.Tensor:
     return points
 
 
+def stage1_weights(path: str | Path, label: str = "stage1_ckpt") -> tuple[dict, dict[str, torch.Tensor]]:
+    """``(hyperparameters, state dict)`` of the SDFVAE in a Stage-1 or a Radar2Shape (Stage-2) checkpoint.
+
+    A Stage-2 checkpoint carries its Stage 1 under ``stage1.`` with ``stage1_hparams``, so either
+    kind names a Stage 1.
+    """
+    checkpoint = load_checkpoint(path, "a checkpoint of SDFVAE or RadarDiffusion", label=label)
+    hparams = checkpoint.get("hyper_parameters", {})
+    if "stage1_hparams" in hparams:
+        state = {k.removeprefix("stage1."): v for k, v in checkpoint["state_dict"].items() if k.startswith("stage1.")}
+        return dict(hparams["stage1_hparams"]), state
+    return dict(hparams), checkpoint["state_dict"]
+
+
+def matching_weights(state: dict[str, torch.Tensor], model: nn.Module, path: str | Path) -> dict[str, torch.Tensor]:
+    """``state`` restricted to ``model``'s weights, or one error line naming the first that differs."""
+    own = model.state_dict()
+    for name, tensor in own.items():
+        if name not in state:
+            raise UserInputError(f"init_weights: {path} has no weight {name}: not a Stage 1 of this model's kind")
+        if state[name].shape != tensor.shape:
+            raise UserInputError(f"init_weights: {path}: {name} is {tuple(state[name].shape)}, this model's is "
+                                 f"{tuple(tensor.shape)} (its sizes differ: resolutions, widths, latent_dim)")
+    return {name: state[name] for name in own}
+
+
 class SDFVAE(ReconstructionModel):
     """Hierarchical multiresolution triplane SDF-VAE (Radar2Shape Stage 1).
 
@@ -106,6 +136,10 @@ class SDFVAE(ReconstructionModel):
         surface_level: the decoded SDF value meshed as the surface (0: the zero level set the loss
             trains); only meshing reads it, so it can be chosen for a trained model on the validation
             split (docs/radar_diffusion.md: 0 scores best for both shipped models).
+        init_weights: a checkpoint of an SDFVAE of the same sizes, or of a Radar2Shape model (its
+            Stage 1 is taken), whose weights this model starts from, e.g. to carry what a Stage 1
+            learned on one family into training on another. Not saved with the hyperparameters, so
+            this model's own checkpoints load without it (the run's config records it).
     """
 
     optimizer_class = torch.optim.Adam
@@ -143,14 +177,18 @@ class SDFVAE(ReconstructionModel):
         mesh_resolution: int = 128,
         mesh_batch_points: int = 65536,
         surface_level: float = 0.0,
+        init_weights: str | None = None,
     ) -> None:
         super().__init__()
         if sign_weight < 0 or sign_temperature <= 0:
             raise UserInputError(f"SDFVAE: sign_weight must be >= 0 and sign_temperature > 0, got {sign_weight} and {sign_temperature}")
-        self.save_hyperparameters()
+        self.save_hyperparameters(ignore=["init_weights"])
         sizes = TriplaneVAESizes.from_dict(self.hparams)
         self.encoder = MultiresTriplaneEncoder(sizes)
         self.decoder = MultiresTriplaneDecoder(sizes)
+        if init_weights:
+            _, state = stage1_weights(init_weights, label="init_weights")
+            self.load_state_dict(matching_weights(state, self, init_weights))
 
     @property
     def n_levels(self) -> int:
