@@ -24,6 +24,7 @@ from torch.utils.data import DataLoader
 from radar2shape.atomic import write_text_atomic
 from radar2shape.errors import UserInputError
 from radar2shape.metrics.scoring import score_reconstruction
+from radar2shape.models.radar_diffusion import load_stage1
 from radar2shape.models.sdf_vae import SDFVAE
 from radar2shape.reconstruction import Reconstruction
 
@@ -91,13 +92,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", required=True, type=Path, help="a Stage-1 run folder of a sweep (fit/, and test/ when it was tested)")
     parser.add_argument("--ckpt", default="last.ckpt",
-                        help="checkpoint file in the run's fit/version_0/checkpoints/ (default last.ckpt; e.g. best-val-iou.ckpt)")
+                        help="checkpoint file in the run's fit/version_0/checkpoints/ (default last.ckpt; e.g. best-val-iou.ckpt), "
+                             "or the path of any Stage-1 or Radar2Shape checkpoint, scored on the run's data")
     parser.add_argument("--train-shapes", type=int, default=100)
     parser.add_argument("--resolutions", type=int, nargs="+", default=[64])
     parser.add_argument("--out", required=True, type=Path)
     parser.add_argument("--scores", type=Path, help="also write the test split's per-shape scores (first grid) to this CSV")
     args = parser.parse_args()
-    ckpt = args.run / "fit/version_0/checkpoints" / args.ckpt
+    ckpt = Path(args.ckpt) if Path(args.ckpt).is_file() else args.run / "fit/version_0/checkpoints" / args.ckpt
     config = args.run / "test/version_0/config.yaml"
     if not config.is_file():  # a grid may skip Stage 1's own test; the fit config holds the same DataModule
         config = args.run / "fit/version_0/config.yaml"
@@ -107,7 +109,7 @@ def main() -> None:
     if args.train_shapes < 1 or any(r < 8 for r in args.resolutions):
         raise SystemExit("error: --train-shapes must be >= 1 and every --resolutions entry >= 8")
     try:
-        model = SDFVAE.load_from_checkpoint(ckpt, map_location="cpu").eval()
+        model = load_stage1(ckpt).eval()
         datamodule = datamodule_of(config)
     except UserInputError as err:
         raise SystemExit(f"error: {err}") from None
