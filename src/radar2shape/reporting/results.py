@@ -148,6 +148,8 @@ STAGE1_CHECKS = (  # (what changed, its fit-gap report), each against the 60-epo
     ("aircraft and ships in their canonical heading only, the other classes turned",
      Path("reports/table1-real-front/fit_gap.md")),
     ("the same, seed 1", Path("reports/table1-real-front/fit_gap_seed1.md")),
+    ("started from the shipped parts model's Stage 1 instead of random weights",
+     Path("reports/table1-real-stage1-parts-init/fit_gap.md")),
 )
 
 

@@ -172,6 +172,7 @@ LAYOUT = Layout("rollsym", (IOU_R, IOU_S, MATCH_S), write_rollsym, ("row", "grou
                  "unet_median8": "Profile U-Net diffusion, 200 epochs, median of 8 draws",
                  "unet_mean32": "Profile U-Net diffusion, 200 epochs, mean of 32 draws",
                  "unet_median32": "Profile U-Net diffusion, 200 epochs, median of 32 draws",
+                 "unet_500_median32": "Profile U-Net diffusion, 500 epochs, median of 32 draws",
                  "invrt": "InvRT"}, {"full": "Full", "partial": "Partial"},
                 noise_title, diagnostics=(DEPENDENCE_IOU_S, SHAPES_IOU_S),
                 describe_group=group_title({"full": "Full", "partial": "Partial"}))
