@@ -69,3 +69,21 @@ def test_about_prints_the_card(capsys):
         main(["reconstruct", "--about", "boat"])
     assert exit_.value.code == 2
     assert capsys.readouterr().err == "error: --about: no shipped model named 'boat'; expected one of parts, real\n"
+
+
+def test_table2_best_quotes_the_per_shape_scores_of_the_runs_it_names():
+    """Each setting's IoU-S on the results page is the mean of that run's per-shape scores; the 500-epoch
+    grid wins where it ran, the 200-epoch one fills the two partial settings it did not."""
+    page = (ROOT / results.RESULTS_PAGE).read_text()
+
+    def mean_iou_s(grid: str, run: str) -> float:
+        with (ROOT / "reports" / grid / "scores" / f"{run}.csv").open() as handle:
+            return np.mean([float(row["iou_s"]) for row in csv.DictReader(handle)])
+
+    for obs, noise in (("full", "low"), ("full", "high"), ("partial", "low")):
+        iou = mean_iou_s("rollsym-medium-longer-median", f"unet_500_median32-{obs}-{noise}")
+        assert f"| {obs} | {noise} | [Profile U-Net diffusion, 500 epochs, median of 32 draws]" in page
+        assert f"| {iou:.3f} |" in page.split(f"| {obs} | {noise} | ", 1)[1].splitlines()[0]
+    iou = mean_iou_s("rollsym-medium-reduce", "unet_median32-partial-high")
+    row = page.split("| partial | high | ", 1)[1].splitlines()[0]
+    assert row.startswith("[Profile U-Net diffusion, 200 epochs, median of 32 draws]") and f"| {iou:.3f} |" in row
