@@ -248,9 +248,10 @@ class ProfileUNetDiffusion(ProfileModel):
     def predict_normalised(self, batch: dict) -> torch.Tensor:
         """Sampled profiles at network scale: ``num_samples`` draws combined point-wise by ``sample_reduce``.
 
-        One draw is a sample of the posterior p(profile | radar); averaging k draws estimates the
-        posterior mean, which trades diversity for expected accuracy (docs/rollsym.md). Seeded, so
-        a test is reproducible.
+        One draw is a sample of the posterior p(profile | radar); the mean of k draws estimates the
+        posterior mean and their median the posterior median, each trading diversity for expected
+        accuracy (docs/rollsym.md: with 32 draws the median scores best). Seeded, so a test is
+        reproducible.
         """
         hp = self.hparams
         radar_input = self.radar_input(batch)
