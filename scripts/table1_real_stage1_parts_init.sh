@@ -18,3 +18,14 @@ mkdir -p $R
 "$PY" scripts/per_class_scores.py --data data/real --out $R/per_class_ceiling.md \
     --run "shipped real Stage 1" $R/ceiling_scores_shipped.csv \
     --run "started from the parts Stage 1" $R/ceiling_scores.csv
+# Stage 2 on it against the shipped real model and the lookup (table1-real-long's rows on the same objects).
+L=reports/table1-real-long/scores
+"$PY" scripts/paired_scores.py --out $R/paired.md \
+    --pair "parts-started Stage 1 - shipped real model, full" $R/scores/radar2shape_partsinit-full-seed0.csv $L/radar2shape_circ_steps12k-full-seed0.csv \
+    --pair "parts-started Stage 1 - shipped real model, partial" $R/scores/radar2shape_partsinit-partial-seed0.csv $L/radar2shape_circ_steps12k-partial-seed0.csv \
+    --pair "parts-started Stage 1 - nearest neighbour, full" $R/scores/radar2shape_partsinit-full-seed0.csv $L/nearest-full.csv \
+    --pair "parts-started Stage 1 - nearest neighbour, partial" $R/scores/radar2shape_partsinit-partial-seed0.csv $L/nearest-partial.csv
+"$PY" scripts/per_class_scores.py --data data/real --out $R/per_class.md \
+    --run "shipped real model" $L/radar2shape_circ_steps12k-full-seed0.csv \
+    --run "parts-started Stage 1" $R/scores/radar2shape_partsinit-full-seed0.csv \
+    --run "nearest neighbour" $L/nearest-full.csv
