@@ -183,3 +183,19 @@ class Layout:
                        if g is not None else c for g in groups[section] for c in chosen]
             out.append((section, [(self.row_title(r), metrics) for r, metrics in rows.items()], columns))
         return out
+
+
+def read_table(path: Path) -> list[tuple[str, dict[str, float]]]:
+    """A report's table CSV as ``(row title, {column: value})``; empty cells are left out (no value)."""
+    rows = []
+    with path.open(newline="") as handle:
+        for row in csv.DictReader(handle):
+            title = row.pop("model")
+            rows.append((title, {k: float(v) for k, v in row.items() if v not in ("", None)}))
+    return rows
+
+
+def columns(groups: dict[str, str], metrics: list[tuple[str, str, bool, int, str]]) -> list[Column]:
+    """Columns ``<group>/<metric>`` with headers ``<group title>: <metric header>``."""
+    return [Column(f"{group}/{key}", f"{title}: {header}", better, digits, spread)
+            for group, title in groups.items() for key, header, better, digits, spread in metrics]
