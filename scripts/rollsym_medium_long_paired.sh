@@ -13,13 +13,10 @@ cd "$(dirname "$0")/.."
 R=reports/rollsym-medium-long
 S=$R/scores
 C=reports/rollsym-medium/scores
-M=reports/rollsym-medium-long-mid/scores
 X=reports/rollsym-medium-longer/scores
 X1=reports/rollsym-medium-longer-seed1/scores
 PY=${PY:-.venv/bin/python}
-unet_200() {  # the 200-epoch U-Net's scores in setting $1 (<obs>-<noise>): medium noise ran in a grid of its own
-  case $1 in *-medium) echo "$M/unet_long-$1.csv" ;; *) echo "$S/unet_long-$1.csv" ;; esac
-}
+source scripts/rollsym_scores.sh
 pairs=()
 for obs in full partial; do
   for noise in low medium high; do

@@ -12,14 +12,11 @@ S=reports/rollsym-medium-reduce/scores
 C=reports/rollsym-medium/scores
 L=reports/rollsym-medium-longer-median/scores
 PY=${PY:-.venv/bin/python}
-committed_200() {  # the committed 200-epoch U-Net's scores in setting $1 (<obs>-<noise>)
-  case $1 in *-medium) echo "reports/rollsym-medium-long-mid/scores/unet_long-$1.csv" ;;
-                    *) echo "reports/rollsym-medium-long/scores/unet_long-$1.csv" ;; esac
-}
+source scripts/rollsym_scores.sh
 pairs=()
 for setting in full-medium full-high partial-medium partial-high; do
   obs=${setting%-*} noise=${setting#*-}
-  pairs+=(--pair "mean of 8, retrained - committed, $obs, $noise noise" $S/unet_long-$setting.csv "$(committed_200 $setting)")
+  pairs+=(--pair "mean of 8, retrained - committed, $obs, $noise noise" $S/unet_long-$setting.csv "$(unet_200 $setting)")
   pairs+=(--pair "mean of 8 - InvRT, $obs, $noise noise" $S/unet_long-$setting.csv $C/invrt-$setting-seed0.csv)
   for variant in median8 mean32 median32; do
     pairs+=(--pair "$variant - mean of 8, $obs, $noise noise" $S/unet_$variant-$setting.csv $S/unet_long-$setting.csv)

@@ -15,6 +15,7 @@ from radar2shape.metrics import score_reconstruction
 from radar2shape.models.latent_writer import LatentWriter
 from radar2shape.models.sdf_vae import SDFVAE, sign_loss, truncated_l1
 from tests.models.shapes import SHAPES, AnalyticShapeDataset
+from tests.models.test_radar_diffusion import save_checkpoint
 
 TINY = dict(
     resolutions=[4, 8], hash_features=2, log2_hashmap_size=8, width=8, n_blocks=2, plane_channels=4,
@@ -279,16 +280,14 @@ def test_init_weights_starts_from_a_stage1_and_is_not_saved(model, tmp_path):
         for p in model.parameters():
             p.add_(torch.randn_like(p))
     source = tmp_path / "source.ckpt"
-    torch.save({"state_dict": model.state_dict(), "hyper_parameters": dict(model.hparams),
-                "pytorch-lightning_version": L.__version__}, source)
+    save_checkpoint(model, source)
     torch.manual_seed(1)
     started = SDFVAE(**TINY, init_weights=str(source))
     expected = model.state_dict()
     assert all(torch.equal(v, expected[k]) for k, v in started.state_dict().items())
     assert "init_weights" not in started.hparams
     own = tmp_path / "started.ckpt"
-    torch.save({"state_dict": started.state_dict(), "hyper_parameters": dict(started.hparams),
-                "pytorch-lightning_version": L.__version__}, own)
+    save_checkpoint(started, own)
     source.unlink()  # the started model's own checkpoint must not need it
     loaded = SDFVAE.load_from_checkpoint(own, weights_only=True)
     assert all(torch.equal(v, expected[k]) for k, v in loaded.state_dict().items())
@@ -310,8 +309,7 @@ def test_init_weights_takes_the_stage1_of_a_radar2shape_checkpoint(model, tmp_pa
 
 def test_init_weights_of_other_sizes_is_one_error_line(model, tmp_path):
     source = tmp_path / "wide.ckpt"
-    torch.save({"state_dict": model.state_dict(), "hyper_parameters": dict(model.hparams),
-                "pytorch-lightning_version": L.__version__}, source)
+    save_checkpoint(model, source)
     with pytest.raises(UserInputError, match=r"init_weights: .*wide.ckpt: .* is \(.*\), this model's is \(.*sizes differ"):
         SDFVAE(**{**TINY, "latent_dim": TINY["latent_dim"] * 2}, init_weights=str(source))
     with pytest.raises(UserInputError, match=r"init_weights: .*missing.ckpt not found"):
